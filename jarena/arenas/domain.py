@@ -1,0 +1,37 @@
+"""A domain: one dynamics and sensor shared by several named tasks (as a dm_control domain)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+
+from jarena.core.dynamics import Dynamics, Sensor
+from jarena.core.task import Task
+from jarena.core.tool import ActionTool
+
+
+@dataclasses.dataclass(frozen=True)
+class Domain:
+    """How to build the pieces of a domain's arenas.
+
+    Attributes:
+      name: domain name (``cartpole``).
+      dynamics: ``() -> Dynamics``.
+      sensor: ``() -> Sensor``.
+      tasks: task name -> ``(**kwargs) -> Task`` building the task *without* its time limit.
+      time_limit: default episode length in dynamics steps for every task of the domain.
+      tool: ``() -> ActionTool`` applied by default (e.g. none for discrete control).
+      tags: task name -> tags (e.g. ``("benchmark",)``).
+    """
+
+    name: str
+    dynamics: Callable[[], Dynamics]
+    sensor: Callable[[], Sensor]
+    tasks: Mapping[str, Callable[..., Task]]
+    time_limit: int | None = None
+    tool: Callable[[], ActionTool] | None = None
+    tags: Mapping[str, tuple[str, ...]] = dataclasses.field(default_factory=dict)
+
+    @property
+    def default_task(self) -> str:
+        return next(iter(self.tasks))

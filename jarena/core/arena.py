@@ -1,0 +1,169 @@
+"""The Arena: dynamics + sensor + task + action tool, as pure ``reset`` and ``step`` functions."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+from jarena.core import episodes as episodes_lib
+from jarena.core.dynamics import Dynamics, Sensor
+from jarena.core.spec import Spec, spec_from_value
+from jarena.core.task import Task
+from jarena.core.tool import ActionTool
+from jarena.core.types import ArenaParams, ArenaState, Info, Outcome, Transition
+
+PyTree = Any
+
+
+@dataclasses.dataclass(frozen=True)
+class ArenaSpec:
+    """What an agent needs to know of an arena before acting (static, hashable)."""
+
+    observation: Spec
+    action: Spec
+    goal_dim: int = 0
+
+
+@dataclasses.dataclass(frozen=True)
+class Arena:
+    """An arena: pure functions over immutable pytrees.
+
+    ``reset(key, params=None, episode=None) -> (state, info)`` and
+    ``step(state, action, params=None) -> (state, info)`` work on one arena; ``jax.vmap`` them (or use
+    :func:`jarena.batch_reset` / :func:`jarena.auto_reset`) for batches, ``jax.jit`` them as the caller.
+
+    Attributes:
+      dynamics, sensor, task, tool: the four pieces (see DESIGN.md).
+      name: a file-system friendly name (``classic-cartpole-balance``), used to find configs.
+      build_string: the string that builds this arena, when it came from :func:`jarena.build_arena`.
+      num_val_episodes, num_eval_episodes: sizes of the fixed validation and evaluation splits.
+    """
+
+    dynamics: Dynamics
+    sensor: Sensor
+    task: Task
+    tool: ActionTool = ActionTool(name="identity")
+    name: str = "arena"
+    build_string: str | None = None
+    num_val_episodes: int = 20
+    num_eval_episodes: int = 100
+
+    # ------------------------------------------------------------------ specs and params
+    def default_params(self) -> ArenaParams:
+        """The default params pytree; replace leaves (or vmap over them) to vary arenas."""
+        return ArenaParams(dynamics=self.dynamics.default_params(), sensor=self.sensor.default_params(),
+                           task=self.task.default_params(), tool=self.tool.default_params())
+
+    @functools.cached_property
+    def action_spec(self) -> Spec:
+        """Spec of the agent's action (after all action tools)."""
+        return self.tool.spec(self.dynamics.control_spec)
+
+    @functools.cached_property
+    def observation_spec(self) -> Spec:
+        """Spec of ``info.observation``."""
+        if self.sensor.spec is not None:
+            return self.sensor.spec
+        _, info = jax.eval_shape(lambda: self.reset(jax.random.key(0)))
+        return spec_from_value(info.observation)
+
+    @functools.cached_property
+    def goal_dim(self) -> int:
+        _, info = jax.eval_shape(lambda: self.reset(jax.random.key(0)))
+        return int(info.goal.shape[0])
+
+    @property
+    def spec(self) -> ArenaSpec:
+        return ArenaSpec(observation=self.observation_spec, action=self.action_spec, goal_dim=self.goal_dim)
+
+    @functools.cached_property
+    def max_episode_steps(self) -> int | None:
+        """Static upper bound on agent steps per episode (from the task's horizon), or ``None``."""
+        if self.task.horizon is None:
+            return None
+        return math.ceil(self.task.horizon / max(self.tool.substeps, 1))
+
+    def no_op(self) -> PyTree:
+        """An action that applies no actuation (in the agent's action space)."""
+        return self.tool.no_op(self.dynamics.no_op_control(), self.dynamics.control_spec)
+
+    def sample_action(self, key: jax.Array) -> PyTree:
+        """A uniformly random valid action."""
+        return self.action_spec.sample(key)
+
+    def episodes(self, split: str) -> range:
+        """Episode ids of ``split`` (``train``: the sampling range; ``val``/``eval``: fixed lists)."""
+        return episodes_lib.split_episodes(split, self.num_val_episodes, self.num_eval_episodes)
+
+    def privileged(self, state: ArenaState) -> ArenaState:
+        """The full simulator state, for oracle and planning agents (never part of observations).
+
+        States are immutable, so this is a safe copy: planners may roll it forward with ``step``.
+        """
+        return state
+
+    # ------------------------------------------------------------------ reset and step
+    def reset(self, key: jax.Array | None = None, params: ArenaParams | None = None,
+              episode: jax.Array | int | None = None) -> tuple[ArenaState, Info]:
+        """Starts an episode.
+
+        Args:
+          key: PRNG key. Without ``episode`` it draws a training episode id; it also seeds the episodes
+            that follow under auto-reset. May be ``None`` when ``episode`` is given.
+          params: arena params (``default_params()`` when ``None``).
+          episode: int32 episode id; the episode is a pure function of the arena, params and this id.
+
+        Returns:
+          ``(state, info)`` with ``info.step == 0`` and zero reward.
+        """
+        params = self.default_params() if params is None else params
+        if episode is None:
+            if key is None:
+                raise ValueError("reset() needs a key, an episode id, or both")
+            key_episode, rng = jax.random.split(key)
+            episode = episodes_lib.sample_train_episode(key_episode)
+        else:
+            episode = jnp.asarray(episode, jnp.int32)
+            rng = None
+        key_dynamics, key_task, key_tool, key_rng = jax.random.split(episodes_lib.episode_key(episode), 4)
+        if rng is None:
+            rng = key_rng if key is None else jax.random.fold_in(key, 1)
+        physics = self.dynamics.init(key_dynamics, params.dynamics)
+        outcome, task_state = self.task.reset(key_task, physics, Outcome.empty(), params.task)
+        tool_state = self.tool.reset(key_tool, params.tool, self.dynamics.control_spec)
+        state = ArenaState(physics=physics, task=task_state, tool=tool_state, step=jnp.zeros((), jnp.int32),
+                           episode=episode, rng=rng)
+        return state, self._info(state, outcome, params)
+
+    def step(self, state: ArenaState, action: PyTree, params: ArenaParams | None = None
+             ) -> tuple[ArenaState, Info]:
+        """Applies ``action`` (validated against ``action_spec``) and returns the new state and info."""
+        params = self.default_params() if params is None else params
+        action = self.action_spec.validate(action, "action")
+
+        def low_level_step(carry, control):
+            physics, task_state = carry
+            next_physics = self.dynamics.step(physics, control, params.dynamics)
+            outcome, task_state = self.task.update(task_state, Outcome.empty(),
+                                                   Transition(physics, control, next_physics), params.task)
+            return (next_physics, task_state), outcome
+
+        (physics, task_state), outcome, tool_state = self.tool.step(
+            state.tool, action, (state.physics, state.task), low_level_step, params.tool,
+            self.dynamics.control_spec)
+        state = state.replace(physics=physics, task=task_state, tool=tool_state, step=state.step + 1)
+        return state, self._info(state, outcome, params)
+
+    def _info(self, state: ArenaState, outcome: Outcome, params: ArenaParams) -> Info:
+        return Info(observation=self.sensor.observe(state.physics, params.sensor),
+                    reward=jnp.asarray(outcome.reward, jnp.float32),
+                    terminated=jnp.asarray(outcome.terminated, bool),
+                    truncated=jnp.asarray(outcome.truncated, bool),
+                    success=jnp.asarray(outcome.success, bool), goal=outcome.goal,
+                    step=state.step, episode=state.episode, reward_terms=outcome.reward_terms,
+                    metrics=outcome.metrics)

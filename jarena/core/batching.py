@@ -1,0 +1,66 @@
+"""Batches of arenas: ``batch_reset``, ``auto_reset`` and ``batch_step``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+from jarena.core.arena import Arena
+from jarena.core.tree import tree_where
+from jarena.core.types import ArenaParams, ArenaState, Final, Info
+
+PyTree = Any
+
+
+def batch_reset(arena: Arena, key: jax.Array | None, num_arenas: int, params: ArenaParams | None = None, *,
+                params_axis: int | None = None, episodes: jax.Array | None = None
+                ) -> tuple[ArenaState, Info]:
+    """Resets ``num_arenas`` arenas at once; leaves get a leading axis of size ``num_arenas``.
+
+    Args:
+      key: PRNG key, split into one key per arena (may be ``None`` when ``episodes`` is given).
+      num_arenas: batch size B.
+      params: shared params, or params batched along ``params_axis``.
+      params_axis: ``None`` for shared params, ``0`` for per-arena params (domain randomisation).
+      episodes: optional int32 (B,) episode ids (e.g. ``arena.episodes("eval")``).
+    """
+    params = arena.default_params() if params is None else params
+    keys = None if key is None else jax.random.split(key, num_arenas)
+    if episodes is not None:
+        episodes = jnp.asarray(episodes, jnp.int32)
+        if episodes.shape != (num_arenas,):
+            raise ValueError(f"batch_reset: episodes has shape {episodes.shape}, expected ({num_arenas},)")
+    return jax.vmap(lambda k, p, e: arena.reset(k, p, e), in_axes=(None if keys is None else 0, params_axis,
+                                                                     None if episodes is None else 0)
+                    )(keys, params, episodes)
+
+
+def auto_reset(arena: Arena, state: ArenaState, action: PyTree, params: ArenaParams | None = None
+               ) -> tuple[ArenaState, Info]:
+    """Steps one arena and, where the episode ended, starts a new one in the same call.
+
+    The returned info keeps the finished step's reward, terminated, truncated, success, reward terms
+    and metrics (so the transition is not lost), while its observation, goal, step and episode are the
+    new episode's; ``info.final`` holds the finished episode's terminal observation, goal, length and
+    id. The new episode is a fresh training episode drawn from ``state.rng``. vmap it for batches.
+    """
+    params = arena.default_params() if params is None else params
+    next_state, info = arena.step(state, action, params)
+    new_state, new_info = arena.reset(next_state.rng, params)
+    done = info.done
+    final = Final(observation=info.observation, goal=info.goal, step=info.step, episode=info.episode)
+    info = info.replace(observation=tree_where(done, new_info.observation, info.observation),
+                        goal=jnp.where(done, new_info.goal, info.goal),
+                        step=jnp.where(done, new_info.step, info.step),
+                        episode=jnp.where(done, new_info.episode, info.episode), final=final)
+    return tree_where(done, new_state, next_state), info
+
+
+def batch_step(arena: Arena, states: ArenaState, actions: PyTree, params: ArenaParams | None = None, *,
+               params_axis: int | None = None, reset_done: bool = True) -> tuple[ArenaState, Info]:
+    """Steps a batch of arenas (leading axis B), auto-resetting finished episodes when ``reset_done``."""
+    params = arena.default_params() if params is None else params
+    fn = (lambda s, a, p: auto_reset(arena, s, a, p)) if reset_done else arena.step
+    return jax.vmap(fn, in_axes=(0, 0, params_axis))(states, actions, params)

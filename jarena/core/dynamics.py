@@ -1,0 +1,63 @@
+"""Dynamics and sensors: the physics of an arena and what an agent can observe of it."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+import jax
+
+from jarena.core.spec import Spec
+
+PyTree = Any
+
+
+def _no_params() -> tuple:
+    return ()
+
+
+@dataclasses.dataclass(frozen=True)
+class Dynamics:
+    """A frozen bundle of pure physics functions.
+
+    Attributes:
+      init: ``(key, params) -> physics``, a random initial physics state.
+      step: ``(physics, control, params) -> physics``, one low-level step of ``timestep`` seconds.
+      control_spec: spec of the control accepted by ``step``.
+      default_params: ``() -> params``; physical constants live here so users can vmap over them.
+      no_op: ``() -> control`` that applies no actuation (defaults to the spec's zeros).
+      timestep: seconds of simulated time per ``step``.
+      render: optional host-side ``(physics, params, **kwargs) -> uint8 image (H, W, 3)``.
+      name: a short name for messages.
+    """
+
+    init: Callable[[jax.Array, PyTree], PyTree]
+    step: Callable[[PyTree, PyTree, PyTree], PyTree]
+    control_spec: Spec
+    default_params: Callable[[], PyTree] = _no_params
+    no_op: Callable[[], PyTree] | None = None
+    timestep: float = 1.0
+    render: Callable[..., Any] | None = None
+    name: str = "dynamics"
+
+    def no_op_control(self) -> PyTree:
+        return self.no_op() if self.no_op is not None else self.control_spec.zeros()
+
+
+@dataclasses.dataclass(frozen=True)
+class Sensor:
+    """What the agent observes of the physics.
+
+    Attributes:
+      observe: ``(physics, params) -> dict[str, array]``.
+      spec: a :class:`~jarena.core.spec.Dict` spec of the observation with real bounds, or ``None``
+        to derive an unbounded spec from the observation's shapes.
+      default_params: ``() -> params`` (noise scales, camera settings...).
+      name: a short name for messages.
+    """
+
+    observe: Callable[[PyTree, PyTree], dict[str, jax.Array]]
+    spec: Spec | None = None
+    default_params: Callable[[], PyTree] = _no_params
+    name: str = "sensor"

@@ -1,0 +1,42 @@
+"""Episode ids and the reproducible train / val / eval splits.
+
+Every episode is named by an int32 id; its randomness (initial physics, goal, tool state) is derived
+from the id alone, so episode 17 is the same on every machine and at every batch size. Evaluation ids
+are ``0 .. n_eval - 1``, validation ids start at ``VAL_BASE``, and training draws ids uniformly from
+``[TRAIN_LOW, TRAIN_HIGH)``, a range disjoint from both.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+EVAL_BASE = 0
+VAL_BASE = 1 << 20
+TRAIN_LOW = 1 << 24
+TRAIN_HIGH = (1 << 31) - 1
+
+SPLITS = ("train", "val", "eval")
+
+_ROOT_SEED = 0x5EED
+
+
+def episode_key(episode: jax.Array) -> jax.Array:
+    """The PRNG key of episode ``episode`` (an int32 scalar); a pure function of the id."""
+    return jax.random.fold_in(jax.random.key(_ROOT_SEED), jnp.asarray(episode, jnp.uint32))
+
+
+def sample_train_episode(key: jax.Array) -> jax.Array:
+    """A training episode id drawn uniformly from ``[TRAIN_LOW, TRAIN_HIGH)``, int32 scalar."""
+    return jax.random.randint(key, (), TRAIN_LOW, TRAIN_HIGH, dtype=jnp.int32)
+
+
+def split_episodes(split: str, num_val: int, num_eval: int) -> range:
+    """The episode ids of ``split``: a fixed list for ``val`` and ``eval``, the sampling range for train."""
+    if split == "eval":
+        return range(EVAL_BASE, EVAL_BASE + num_eval)
+    if split == "val":
+        return range(VAL_BASE, VAL_BASE + num_val)
+    if split == "train":
+        return range(TRAIN_LOW, TRAIN_HIGH)
+    raise ValueError(f"unknown split {split!r}; valid splits are {list(SPLITS)}")

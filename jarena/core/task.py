@@ -1,0 +1,81 @@
+"""Tasks: composable transforms that turn physics transitions into rewards, goals and terminations.
+
+A :class:`Task` is a frozen bundle of pure functions, in the manner of optax's
+``GradientTransformation``. Each task owns one slot of state and one slot of params and threads an
+:class:`~jarena.core.types.Outcome` through: a base task (e.g. cartpole balance) fills reward and
+termination, later transforms in a :func:`chain` adjust them (``time_limit``, ``reward_scale``...).
+
+Tasks run once per *low-level* dynamics step, so with an action-repeat tool rewards accumulate over
+the repeated steps and a time limit counts physical time, as in dm_control.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+import jax
+
+from jarena.core.types import Outcome, Transition
+
+PyTree = Any
+
+
+def _no_params() -> tuple:
+    return ()
+
+
+def _no_state_reset(key, physics, outcome, params):
+    return outcome, ()
+
+
+@dataclasses.dataclass(frozen=True)
+class Task:
+    """A task transform.
+
+    Attributes:
+      update: ``(state, outcome, transition, params) -> (outcome, state)``; runs after every dynamics
+        step with the outcome produced so far by earlier transforms in the chain.
+      reset: ``(key, physics, outcome, params) -> (outcome, state)``; runs at episode start on the
+        initial physics; must produce an outcome with the same structure as ``update`` (same reward
+        terms and metrics, goal of the same shape).
+      default_params: ``() -> params`` pytree.
+      horizon: static upper bound on the number of dynamics steps in an episode (``None``: unbounded);
+        runners use it to size their loops.
+      name: a short name for messages.
+    """
+
+    update: Callable[[PyTree, Outcome, Transition, PyTree], tuple[Outcome, PyTree]]
+    reset: Callable[[jax.Array, PyTree, Outcome, PyTree], tuple[Outcome, PyTree]] = _no_state_reset
+    default_params: Callable[[], PyTree] = _no_params
+    horizon: int | None = None
+    name: str = "task"
+
+    @staticmethod
+    def chain(*tasks: Task) -> Task:
+        """Composes tasks left to right; state and params are tuples with one slot per task."""
+        for t in tasks:
+            if not isinstance(t, Task):
+                raise TypeError(f"chain of tasks got {t!r}, which is not a Task")
+
+        def reset(key, physics, outcome, params):
+            keys = jax.random.split(key, len(tasks)) if tasks else ()
+            states = []
+            for task, k, p in zip(tasks, keys, params, strict=True):
+                outcome, s = task.reset(k, physics, outcome, p)
+                states.append(s)
+            return outcome, tuple(states)
+
+        def update(states, outcome, transition, params):
+            new_states = []
+            for task, s, p in zip(tasks, states, params, strict=True):
+                outcome, s = task.update(s, outcome, transition, p)
+                new_states.append(s)
+            return outcome, tuple(new_states)
+
+        horizons = [t.horizon for t in tasks if t.horizon is not None]
+        return Task(update=update, reset=reset,
+                    default_params=lambda: tuple(t.default_params() for t in tasks),
+                    horizon=min(horizons) if horizons else None,
+                    name="chain(" + ", ".join(t.name for t in tasks) + ")")

@@ -1,0 +1,151 @@
+"""Typed pytrees that flow through an arena: transitions, task outcomes, information and state.
+
+All are frozen ``flax.struct`` dataclasses, so they are pytrees (``vmap``/``scan``/``jit`` apply) and
+``.replace(...)`` returns an updated copy. Shapes below are for one arena; batching adds leading axes.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+Array = jax.Array
+PyTree = Any
+
+
+@struct.dataclass
+class Transition:
+    """One low-level dynamics step, as a task sees it.
+
+    Attributes:
+      previous: physics state before the step.
+      control: the low-level control applied (after the action tool), in the dynamics' control spec.
+      physics: physics state after the step.
+    """
+
+    previous: PyTree
+    control: PyTree
+    physics: PyTree
+
+
+@struct.dataclass
+class Outcome:
+    """What a task reports for one step; threaded through a chain of task transforms.
+
+    Each transform reads the typed fields left by the transforms before it and may overwrite them, or
+    add its own named entries to ``reward_terms`` and ``metrics`` (which it never reads back).
+
+    Attributes:
+      reward: float32 scalar.
+      reward_terms: named float32 scalars that explain the reward (write-only for transforms).
+      terminated: bool scalar; the episode reached a terminal state of the task (no bootstrapping).
+      truncated: bool scalar; the episode was cut short (time limit), bootstrapping is valid.
+      success: bool scalar; the task's success criterion holds at this step.
+      goal: float32 vector of shape (goal_dim,), (0,) for tasks without a goal.
+      metrics: named scalars for evaluation (write-only for transforms).
+    """
+
+    reward: Array
+    terminated: Array
+    truncated: Array
+    success: Array
+    goal: Array
+    reward_terms: dict[str, Array] = struct.field(default_factory=dict)
+    metrics: dict[str, Array] = struct.field(default_factory=dict)
+
+    @classmethod
+    def empty(cls) -> Outcome:
+        return cls(reward=jnp.zeros((), jnp.float32), terminated=jnp.zeros((), bool),
+                   truncated=jnp.zeros((), bool), success=jnp.zeros((), bool), goal=jnp.zeros((0,), jnp.float32))
+
+    @property
+    def done(self) -> Array:
+        return self.terminated | self.truncated
+
+
+@struct.dataclass
+class Final:
+    """The end of the episode that an auto-reset just replaced (see :func:`jarena.auto_reset`).
+
+    Valid where ``info.terminated | info.truncated``; elsewhere it repeats the current values.
+
+    Attributes:
+      observation: the terminal observation of the finished episode (same structure as observation).
+      goal: the finished episode's goal.
+      step: int32 length of the finished episode in agent steps.
+      episode: int32 id of the finished episode.
+    """
+
+    observation: dict[str, Array]
+    goal: Array
+    step: Array
+    episode: Array
+
+
+@struct.dataclass
+class Info:
+    """What an agent receives from an arena after ``reset`` or ``step``.
+
+    Attributes:
+      observation: dict of arrays, as described by ``arena.observation_spec``.
+      reward: float32 scalar, reward of the last step (0 after reset).
+      reward_terms: dict of named float32 scalars explaining the reward.
+      terminated, truncated, success: bool scalars (see :class:`Outcome`).
+      goal: float32 vector (goal_dim,), (0,) when the task has no goal.
+      metrics: dict of named scalars for evaluation.
+      step: int32, agent steps taken in this episode.
+      episode: int32 episode id (see ``arena.episodes``).
+      final: under :func:`jarena.auto_reset` only: the finished episode's terminal data, valid where
+        ``terminated | truncated``; ``None`` otherwise.
+    """
+
+    observation: dict[str, Array]
+    reward: Array
+    terminated: Array
+    truncated: Array
+    success: Array
+    goal: Array
+    step: Array
+    episode: Array
+    reward_terms: dict[str, Array] = struct.field(default_factory=dict)
+    metrics: dict[str, Array] = struct.field(default_factory=dict)
+    final: Final | None = None
+
+    @property
+    def done(self) -> Array:
+        """``terminated | truncated``."""
+        return self.terminated | self.truncated
+
+
+@struct.dataclass
+class ArenaState:
+    """The full state of one arena; immutable.
+
+    Attributes:
+      physics: the dynamics' state pytree.
+      task: the task chain's state (a tuple with one slot per transform).
+      tool: the action-tool chain's state (a tuple with one slot per transform).
+      step: int32, agent steps taken in this episode.
+      episode: int32 episode id.
+      rng: PRNG key that seeds the next episode when the arena auto-resets.
+    """
+
+    physics: PyTree
+    task: PyTree
+    tool: PyTree
+    step: Array
+    episode: Array
+    rng: Array
+
+
+@struct.dataclass
+class ArenaParams:
+    """Parameters of an arena's pieces; vmap over any leaf (masses, goals, time limits...)."""
+
+    dynamics: PyTree
+    sensor: PyTree
+    task: PyTree
+    tool: PyTree

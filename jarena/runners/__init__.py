@@ -1,0 +1,9 @@
+"""Runners: one trial, evaluation over fixed splits, and batched device-parallel rollouts."""
+
+from jarena.runners.evaluate import evaluate, validate
+from jarena.runners.parallel import Rollout, perform_parallel
+from jarena.runners.results import EvalResult, mean_interval
+from jarena.runners.run import Trajectory, run
+
+__all__ = ["EvalResult", "Rollout", "Trajectory", "evaluate", "mean_interval", "perform_parallel", "run",
+           "validate"]

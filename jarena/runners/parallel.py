@@ -1,0 +1,105 @@
+"""``perform_parallel``: a batch of arenas stepped in one compiled ``lax.scan``, sharded over devices."""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import jax
+import numpy as np
+from flax import struct
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+from jarena.core.agent import Agent
+from jarena.core.arena import Arena
+from jarena.core.batching import batch_reset
+from jarena.core.types import ArenaParams, ArenaState, Info
+from jarena.runners.loop import act_and_step
+
+PyTree = Any
+
+
+@struct.dataclass
+class Rollout:
+    """The result of :func:`perform_parallel`.
+
+    Attributes:
+      state, info, agent_state: the batch at the end (leading axis B), to continue from.
+      infos: per-step :class:`Info`, (T, B, ...), or ``None`` when not recorded.
+      actions: per-step actions, (T, B, ...), or ``None`` when not recorded.
+    """
+
+    state: ArenaState
+    info: Info
+    agent_state: PyTree
+    infos: Info | None
+    actions: PyTree | None
+
+
+def _arena_sharding(num_arenas: int):
+    devices = jax.local_devices()
+    if len(devices) < 2:
+        return None
+    if num_arenas % len(devices):
+        raise ValueError(f"perform_parallel shards arenas over {len(devices)} local devices; num_arenas="
+                         f"{num_arenas} must be a multiple of {len(devices)}")
+    return NamedSharding(Mesh(np.asarray(devices), ("arena",)), PartitionSpec("arena"))
+
+
+def _constrain(tree, sharding):
+    if sharding is None:
+        return tree
+    return jax.tree_util.tree_map(
+        lambda x: jax.lax.with_sharding_constraint(x, sharding) if getattr(x, "ndim", 0) >= 1 else x, tree)
+
+
+@functools.lru_cache(maxsize=64)
+def _compiled(agent: Agent, arena: Arena, num_arenas: int, num_steps: int, params_axis: int | None,
+              record: bool):
+    sharding = _arena_sharding(num_arenas)
+
+    def rollout(key, start, agent_state, params):
+        reset_key, act_key = jax.random.split(key)
+        if start is None:
+            state, info = batch_reset(arena, reset_key, num_arenas, params, params_axis=params_axis)
+        else:
+            state, info = start
+        state, info = _constrain((state, info), sharding)
+
+        def body(carry, t):
+            state, info, agent_state = carry
+            state, info, agent_state, action = act_and_step(agent, arena, state, info, agent_state,
+                                                            jax.random.fold_in(act_key, t), params, params_axis,
+                                                            reset_done=True)
+            state, info = _constrain((state, info), sharding)
+            return (state, info, agent_state), ((info, action) if record else None)
+
+        (state, info, agent_state), out = jax.lax.scan(body, (state, info, agent_state), np.arange(num_steps))
+        infos, actions = out if record else (None, None)
+        return Rollout(state=state, info=info, agent_state=agent_state, infos=infos, actions=actions)
+
+    return jax.jit(rollout)
+
+
+def perform_parallel(agent: Agent, arena: Arena, key: jax.Array, num_arenas: int, num_steps: int, *,
+                     params: ArenaParams | None = None, params_axis: int | None = None,
+                     agent_state: PyTree = None, start: tuple[ArenaState, Info] | None = None,
+                     record: bool = True) -> Rollout:
+    """Steps ``num_arenas`` arenas for ``num_steps`` agent steps with auto-reset, in one compiled call.
+
+    With several local devices the arena batch is sharded over them (``num_arenas`` must divide evenly).
+
+    Args:
+      agent, arena: what to run.
+      key: PRNG key for resets and the agent.
+      num_arenas, num_steps: batch size B and steps T.
+      params, params_axis: shared params (axis ``None``) or per-arena params (axis 0).
+      agent_state: the agent's state for B arenas (default: ``agent.init``).
+      start: ``(state, info)`` to continue from (e.g. a previous rollout's), instead of fresh resets.
+      record: return per-step infos and actions (T, B, ...); off saves memory for long runs.
+    """
+    params = arena.default_params() if params is None else params
+    if agent_state is None:
+        agent_state = agent.init(jax.random.fold_in(key, 0x1A1), arena.spec, num_arenas)
+    fn = _compiled(agent, arena, int(num_arenas), int(num_steps), params_axis, bool(record))
+    return fn(key, start, agent_state, params)

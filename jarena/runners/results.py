@@ -1,0 +1,85 @@
+"""Evaluation results: per-episode values, aggregates with confidence intervals, and a text table."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+
+def mean_interval(values: np.ndarray, confidence: float = 0.95) -> tuple[float, float, float, float]:
+    """``(mean, std, low, high)``: sample std (ddof=1) and the Student-t interval of the mean."""
+    values = np.asarray(values, np.float64)
+    n = values.size
+    if n == 0:
+        return (math.nan,) * 4
+    mean = float(values.mean())
+    if n == 1:
+        return mean, 0.0, mean, mean
+    std = float(values.std(ddof=1))
+    from scipy import stats  # a dependency of jax
+
+    half = float(stats.t.ppf(0.5 + confidence / 2, n - 1)) * std / math.sqrt(n)
+    return mean, std, mean - half, mean + half
+
+
+@dataclasses.dataclass(frozen=True)
+class EvalResult:
+    """Results of evaluating an agent on a split's episodes (host numpy arrays, one entry per episode).
+
+    Attributes:
+      arena, agent, split: names.
+      episodes: int32 (N,) episode ids.
+      returns: float (N,) undiscounted returns.
+      lengths: int (N,) episode lengths in agent steps.
+      successes: bool (N,) success at each episode's last step.
+      metrics: name -> (N,) values at each episode's last step.
+    """
+
+    arena: str
+    agent: str
+    split: str
+    episodes: np.ndarray
+    returns: np.ndarray
+    lengths: np.ndarray
+    successes: np.ndarray
+    metrics: dict[str, np.ndarray]
+
+    def summary(self) -> dict[str, float]:
+        """Aggregates: return mean/std/95% interval, success rate, mean length, metric means."""
+        mean, std, low, high = mean_interval(self.returns)
+        out = {"episodes": float(self.returns.size), "return_mean": mean, "return_std": std,
+               "return_ci95_low": low, "return_ci95_high": high,
+               "success_rate": float(np.mean(self.successes)) if self.successes.size else math.nan,
+               "length_mean": float(np.mean(self.lengths)) if self.lengths.size else math.nan}
+        for name, values in sorted(self.metrics.items()):
+            out[f"{name}_mean"] = float(np.mean(values))
+        return out
+
+    def per_episode(self) -> list[dict[str, float]]:
+        """One row per episode: id, return, length, success and final metrics."""
+        rows = []
+        for i in range(self.episodes.size):
+            row = {"episode": int(self.episodes[i]), "return": float(self.returns[i]),
+                   "length": int(self.lengths[i]), "success": bool(self.successes[i])}
+            row.update({k: float(v[i]) for k, v in sorted(self.metrics.items())})
+            rows.append(row)
+        return rows
+
+    def table(self) -> str:
+        """A results table as aligned text."""
+        s = self.summary()
+        rows = [("arena", self.arena), ("agent", self.agent), ("split", self.split),
+                ("episodes", f"{int(s['episodes'])}"),
+                ("return", f"{s['return_mean']:.2f} ± {s['return_std']:.2f}  "
+                           f"(95% CI {s['return_ci95_low']:.2f} .. {s['return_ci95_high']:.2f})"),
+                ("success rate", f"{100 * s['success_rate']:.1f}%"), ("mean length", f"{s['length_mean']:.1f}")]
+        rows += [(name, f"{s[f'{name}_mean']:.4g}") for name in sorted(self.metrics)]
+        width = max(len(k) for k, _ in rows)
+        line = "+" + "-" * (width + 2) + "+" + "-" * (max(len(v) for _, v in rows) + 2) + "+"
+        body = [f"| {k:<{width}} | {v:<{len(line) - width - 7}} |" for k, v in rows]
+        return "\n".join([line, *body, line])
+
+    def __str__(self):
+        return self.table()

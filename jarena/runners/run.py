@@ -1,0 +1,92 @@
+"""``run``: one trial of an agent in an arena, returning every step's information and action."""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from jarena.core.agent import Agent
+from jarena.core.arena import Arena
+from jarena.core.batching import batch_reset
+from jarena.core.types import ArenaParams, Info
+from jarena.runners.loop import frozen_step
+
+PyTree = Any
+
+
+@struct.dataclass
+class Trajectory:
+    """One episode, step by step (leaves have a leading time axis T = max_steps).
+
+    Attributes:
+      initial: the :class:`Info` after reset (no time axis).
+      infos: the :class:`Info` after each step, (T, ...).
+      actions: the agent's action at each step, (T, ...).
+      valid: bool (T,), the steps that belong to the episode (False after it ended).
+    """
+
+    initial: Info
+    infos: Info
+    actions: PyTree
+    valid: jax.Array
+
+    @property
+    def length(self) -> jax.Array:
+        return jnp.sum(self.valid)
+
+    @property
+    def episode_return(self) -> jax.Array:
+        return jnp.sum(jnp.where(self.valid, self.infos.reward, 0.0))
+
+
+def _squeeze(tree, axis):
+    return jax.tree_util.tree_map(lambda x: jnp.squeeze(x, axis), tree)
+
+
+@functools.lru_cache(maxsize=64)
+def _compiled_run(agent: Agent, arena: Arena, max_steps: int, with_episode: bool):
+    def trial(key, episode, agent_state, params):
+        reset_key, act_key = jax.random.split(key)
+        state, info = batch_reset(arena, reset_key, 1, params,
+                                  episodes=jnp.reshape(episode, (1,)) if with_episode else None)
+        initial = info
+
+        def body(carry, t):
+            state, info, agent_state, done = carry
+            state, info, agent_state, action, valid = frozen_step(
+                agent, arena, state, info, agent_state, jax.random.fold_in(act_key, t), params, None, done)
+            return (state, info, agent_state, done | info.done), (info, action, valid)
+
+        carry = (state, info, agent_state, jnp.zeros((1,), bool))
+        _, (infos, actions, valid) = jax.lax.scan(body, carry, jnp.arange(max_steps))
+        return Trajectory(initial=_squeeze(initial, 0), infos=_squeeze(infos, 1), actions=_squeeze(actions, 1),
+                          valid=valid[:, 0])
+
+    return jax.jit(trial)
+
+
+def run(agent: Agent, arena: Arena, key: jax.Array, *, episode: int | None = None,
+        params: ArenaParams | None = None, agent_state: PyTree = None, max_steps: int | None = None
+        ) -> Trajectory:
+    """Runs one episode (a training episode drawn from ``key``, or ``episode``) in one compiled call.
+
+    Args:
+      agent, arena: what to run.
+      key: PRNG key (episode draw and the agent's randomness).
+      episode: an episode id, e.g. ``arena.episodes("eval")[3]``.
+      params: arena params.
+      agent_state: the agent's state for a batch of one arena (default: ``agent.init``).
+      max_steps: length of the recorded trajectory (default: the arena's ``max_episode_steps``).
+    """
+    max_steps = max_steps or arena.max_episode_steps
+    if max_steps is None:
+        raise ValueError(f"arena {arena.name!r} has no time limit; pass max_steps to run")
+    params = arena.default_params() if params is None else params
+    if agent_state is None:
+        agent_state = agent.init(jax.random.fold_in(key, 0x1A1), arena.spec, 1)
+    episode_arg = jnp.asarray(0 if episode is None else episode, jnp.int32)
+    return _compiled_run(agent, arena, int(max_steps), episode is not None)(key, episode_arg, agent_state, params)
