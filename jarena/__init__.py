@@ -19,6 +19,7 @@ from jarena.building import (
     register_tool,
 )
 from jarena.configs import retrieve_config
+from jarena import tasks, tools
 from jarena.core import spec
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec

@@ -66,7 +66,11 @@ def assemble(builder: str, domains: Mapping[str, Domain], domain: str, task: Any
     arena = Arena(dynamics=dynamics, sensor=dom.sensor(), task=chain(*tasks),
                   tool=chain(*tools) if tools else Arena.tool, name=f"{builder}-{domain}-{task_call.name}",
                   **extra)
-    _ = arena.action_spec  # tools check the spec they drive here, at build time
+    try:
+        _ = arena.action_spec  # tools check the spec they drive here, at build time
+    except (TypeError, ValueError) as e:
+        raise ArenaStringError(f"action tools do not fit {builder} domain {domain!r} "
+                               f"(control {dynamics.control_spec!r}): {e}") from None
     return arena
 
 

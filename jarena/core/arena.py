@@ -15,7 +15,7 @@ from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Spec, spec_from_value
 from jarena.core.task import Task
 from jarena.core.tool import ActionTool
-from jarena.core.types import ArenaParams, ArenaState, Info, Outcome, Transition
+from jarena.core.types import ArenaParams, ArenaState, Final, Info, Outcome, Transition
 
 PyTree = Any
 
@@ -27,6 +27,8 @@ class ArenaSpec:
     observation: Spec
     action: Spec
     goal_dim: int = 0
+    name: str = "arena"
+    no_op: Any = dataclasses.field(default=None, compare=False, hash=False)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,7 +81,8 @@ class Arena:
 
     @property
     def spec(self) -> ArenaSpec:
-        return ArenaSpec(observation=self.observation_spec, action=self.action_spec, goal_dim=self.goal_dim)
+        return ArenaSpec(observation=self.observation_spec, action=self.action_spec, goal_dim=self.goal_dim,
+                         name=self.name, no_op=jax.device_get(self.no_op()))
 
     @functools.cached_property
     def max_episode_steps(self) -> int | None:
@@ -160,10 +163,12 @@ class Arena:
         return state, self._info(state, outcome, params)
 
     def _info(self, state: ArenaState, outcome: Outcome, params: ArenaParams) -> Info:
-        return Info(observation=self.sensor.observe(state.physics, params.sensor),
+        observation = self.sensor.observe(state.physics, params.sensor)
+        return Info(observation=observation,
                     reward=jnp.asarray(outcome.reward, jnp.float32),
                     terminated=jnp.asarray(outcome.terminated, bool),
                     truncated=jnp.asarray(outcome.truncated, bool),
                     success=jnp.asarray(outcome.success, bool), goal=outcome.goal,
                     step=state.step, episode=state.episode, reward_terms=outcome.reward_terms,
-                    metrics=outcome.metrics)
+                    metrics=outcome.metrics,
+                    final=Final(observation=observation, goal=outcome.goal, step=state.step, episode=state.episode))

@@ -9,7 +9,7 @@ import jax.numpy as jnp
 
 from jarena.core.arena import Arena
 from jarena.core.tree import tree_where
-from jarena.core.types import ArenaParams, ArenaState, Final, Info
+from jarena.core.types import ArenaParams, ArenaState, Info
 
 PyTree = Any
 
@@ -50,11 +50,10 @@ def auto_reset(arena: Arena, state: ArenaState, action: PyTree, params: ArenaPar
     next_state, info = arena.step(state, action, params)
     new_state, new_info = arena.reset(next_state.rng, params)
     done = info.done
-    final = Final(observation=info.observation, goal=info.goal, step=info.step, episode=info.episode)
     info = info.replace(observation=tree_where(done, new_info.observation, info.observation),
                         goal=jnp.where(done, new_info.goal, info.goal),
                         step=jnp.where(done, new_info.step, info.step),
-                        episode=jnp.where(done, new_info.episode, info.episode), final=final)
+                        episode=jnp.where(done, new_info.episode, info.episode))
     return tree_where(done, new_state, next_state), info
 
 

@@ -68,15 +68,17 @@ class Outcome:
 
 @struct.dataclass
 class Final:
-    """The end of the episode that an auto-reset just replaced (see :func:`jarena.auto_reset`).
+    """Where this step's reward belongs: the episode that the step ran in.
 
-    Valid where ``info.terminated | info.truncated``; elsewhere it repeats the current values.
+    Equal to the info's own observation, goal, step and episode, except after an auto-reset (see
+    :func:`jarena.auto_reset`), where the info shows the new episode and ``final`` keeps the finished
+    one. ``final.observation`` is therefore always the right "next observation" of a transition.
 
     Attributes:
-      observation: the terminal observation of the finished episode (same structure as observation).
-      goal: the finished episode's goal.
-      step: int32 length of the finished episode in agent steps.
-      episode: int32 id of the finished episode.
+      observation: the observation reached by this step in that episode (terminal one at its end).
+      goal: that episode's goal.
+      step: int32 agent steps of that episode so far (its length at its end).
+      episode: int32 id of that episode.
     """
 
     observation: dict[str, Array]
@@ -98,8 +100,8 @@ class Info:
       metrics: dict of named scalars for evaluation.
       step: int32, agent steps taken in this episode.
       episode: int32 episode id (see ``arena.episodes``).
-      final: under :func:`jarena.auto_reset` only: the finished episode's terminal data, valid where
-        ``terminated | truncated``; ``None`` otherwise.
+      final: the episode this step belongs to (:class:`Final`); differs from the fields above only
+        where :func:`jarena.auto_reset` started a new episode.
     """
 
     observation: dict[str, Array]
@@ -112,7 +114,7 @@ class Info:
     episode: Array
     reward_terms: dict[str, Array] = struct.field(default_factory=dict)
     metrics: dict[str, Array] = struct.field(default_factory=dict)
-    final: Final | None = None
+    final: Final | None = None  # always set by Arena.reset / Arena.step / auto_reset
 
     @property
     def done(self) -> Array:

@@ -8,12 +8,13 @@ from __future__ import annotations
 from typing import Any
 
 from jarena.arenas.assemble import assemble, variants
-from jarena.arenas.classic import cartpole
+from jarena.arenas.classic import acrobot, cartpole, mountain_car, pendulum, point_mass
 from jarena.arenas.domain import Domain
 from jarena.building.builder import register_arena_builder
 from jarena.core.arena import Arena
 
-DOMAINS: dict[str, Domain] = {d.name: d for d in [cartpole.DOMAIN]}
+DOMAINS: dict[str, Domain] = {d.name: d for d in [cartpole.DOMAIN, pendulum.DOMAIN, mountain_car.DOMAIN, acrobot.DOMAIN,
+                                                  point_mass.DOMAIN]}
 
 
 def build(domain: str, task: Any = None, action: Any = None, time_limit: int | None = None, wrap: Any = None,

@@ -1,0 +1,102 @@
+"""The ``jarena`` command line: list arenas and agents, evaluate an agent on an arena.
+
+    jarena list
+    jarena evaluate oracle_cartpole "classic|domain:cartpole,task:balance"
+    jarena evaluate random "classic|domain:pendulum" --split val --set key=value
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from typing import Any
+
+import yaml
+
+
+def _parse_override(text: str) -> tuple[str, Any]:
+    if "=" not in text:
+        raise argparse.ArgumentTypeError(f"--set expects key=value, got {text!r}")
+    key, value = text.split("=", 1)
+    return key.strip(), yaml.safe_load(value)
+
+
+def _cmd_list(args) -> int:
+    import jarena
+    import jarena_agents
+
+    from jarena.building.builder import arena_tags
+
+    print("Arenas (build with jarena.build_arena(string)):")
+    for string in jarena.list_arenas(args.tag):
+        tags = ", ".join(arena_tags(string))
+        print(f"  {string:<55} [{tags}]")
+    print("\nAgents (build with jarena_agents.build_agent(name)):")
+    for entry in jarena_agents.AGENTS:
+        print(f"  {entry.name:<20} [{', '.join(entry.tags)}]")
+    return 0
+
+
+def _cmd_evaluate(args) -> int:
+    import jax
+
+    import jarena
+    import jarena_agents
+
+    arena = jarena.build_arena(args.arena)
+    config = jarena.retrieve_config(args.agent, arena, args.config)
+    config.update(dict(args.set or []))
+    agent = jarena_agents.build_agent(args.agent, config)
+    episodes = list(arena.episodes(args.split))[: args.episodes] if args.episodes else None
+    n = len(episodes) if episodes is not None else len(arena.episodes(args.split))
+    print(f"evaluating {agent.name!r} on {args.arena!r}: {n} {args.split} episodes in parallel "
+          f"on {jax.devices()[0].platform} ...", flush=True)
+    start = time.perf_counter()
+    result = jarena.evaluate(agent, arena, jax.random.key(args.seed), split=args.split, episodes=episodes)
+    seconds = time.perf_counter() - start
+    steps = int(result.lengths.sum())
+    print(f"done in {seconds:.1f} s (compile included), {steps} agent steps")
+    print(result.table())
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"summary": result.summary(), "episodes": result.per_episode()}, f, indent=2)
+        print(f"wrote {args.json}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="jarena", description="JAX-native arenas and agents.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("list", help="list buildable arenas and registered agents")
+    p.add_argument("--tag", default=None, help="only arenas with this tag (e.g. benchmark)")
+    p.set_defaults(fn=_cmd_list)
+
+    p = sub.add_parser("evaluate", help="evaluate an agent on an arena's fixed episodes and print a results table",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("agent", help="agent name, see `jarena list`")
+    p.add_argument("arena", help='arena string, e.g. "classic|domain:cartpole,task:balance"')
+    p.add_argument("--split", default="eval", choices=["eval", "val"], help="which fixed episodes")
+    p.add_argument("--episodes", type=int, default=None, help="only the first N episodes of the split")
+    p.add_argument("--seed", type=int, default=0, help="seed of the agent's randomness")
+    p.add_argument("--config", default="default", help="config name under configs/<agent>/<arena>/")
+    p.add_argument("--set", action="append", type=_parse_override, metavar="KEY=VALUE",
+                   help="override a config key (repeatable)")
+    p.add_argument("--json", default=None, help="also write the summary and per-episode results to this file")
+    p.set_defaults(fn=_cmd_evaluate)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.fn(args)
+    except (ValueError, KeyError, FileNotFoundError) as e:
+        print(f"jarena: error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

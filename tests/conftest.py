@@ -1,0 +1,10 @@
+"""Test configuration: JAX's persistent compilation cache keeps the suite fast on small CPU machines."""
+
+import os
+
+import jax
+
+jax.config.update("jax_compilation_cache_dir",
+                  os.environ.get("JARENA_JAX_CACHE", os.path.expanduser("~/.cache/jarena/jax")))
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)

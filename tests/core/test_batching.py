@@ -1,0 +1,51 @@
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import jarena
+
+
+def test_batch_reset_shapes_and_episodes():
+    arena = jarena.build_arena("classic|domain:cartpole")
+    states, infos = jarena.batch_reset(arena, jax.random.key(0), 5)
+    assert infos.observation["state"].shape == (5, 4)
+    assert len(set(np.asarray(infos.episode).tolist())) == 5
+    _, infos = jarena.batch_reset(arena, None, 3, episodes=jnp.arange(3))
+    np.testing.assert_array_equal(infos.episode, [0, 1, 2])
+
+
+def test_auto_reset_keeps_terminal_observation_and_starts_fresh_episodes():
+    arena = jarena.build_arena("classic|domain:cartpole")
+    step = jax.jit(lambda s, a: jarena.auto_reset(arena, s, a))
+    plain_step = jax.jit(arena.step)
+    state, info = arena.reset(jax.random.key(0))
+    starts, boundaries = [np.asarray(info.observation["state"])], 0
+    for _ in range(200):
+        expected_state, expected = plain_step(state, jnp.int32(1))  # always push right: falls fast
+        state, info = step(state, jnp.int32(1))
+        np.testing.assert_array_equal(info.final.observation["state"], expected.observation["state"])
+        assert float(info.reward) == float(expected.reward)
+        if bool(info.done):
+            boundaries += 1
+            assert bool(info.terminated)
+            assert int(info.final.episode) == int(expected.episode) != int(info.episode)
+            assert int(info.step) == 0 and int(info.final.step) == int(expected.step)
+            starts.append(np.asarray(info.observation["state"]))
+        else:
+            np.testing.assert_array_equal(info.observation["state"], expected.observation["state"])
+    assert boundaries >= 5
+    # every new episode has fresh randomness: no two initial states are equal
+    assert len({s.tobytes() for s in starts}) == len(starts)
+
+
+def test_batch_step_with_and_without_reset():
+    arena = jarena.build_arena("classic|domain:cartpole")
+    states, infos = jarena.batch_reset(arena, jax.random.key(0), 4)
+    actions = jnp.ones(4, jnp.int32)
+    for _ in range(30):
+        states, infos = jarena.batch_step(arena, states, actions, reset_done=False)
+    assert bool(jnp.all(infos.step == 30))
+    states, infos = jarena.batch_reset(arena, jax.random.key(0), 4)
+    for _ in range(30):
+        states, infos = jarena.batch_step(arena, states, actions)
+    assert bool(jnp.all(infos.step < 30))

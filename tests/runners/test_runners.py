@@ -1,0 +1,83 @@
+import os
+import subprocess
+import sys
+import textwrap
+
+import jax
+import numpy as np
+import pytest
+
+import jarena
+import jarena_agents
+
+
+@pytest.fixture(scope="module")
+def arena():
+    return jarena.build_arena("classic|domain:cartpole,task:balance")
+
+
+def test_evaluate_aggregates_and_matches_run(arena):
+    agent = jarena_agents.build_agent("random")
+    result = jarena.evaluate(agent, arena, jax.random.key(0), episodes=[0, 1, 2, 3])
+    assert result.returns.shape == (4,) and list(result.episodes) == [0, 1, 2, 3]
+    np.testing.assert_array_equal(result.returns, result.lengths)  # reward 1 per step
+    s = result.summary()
+    assert s["return_ci95_low"] < s["return_mean"] < s["return_ci95_high"]
+    assert s["return_std"] == pytest.approx(np.std(result.returns, ddof=1))
+    assert "return" in result.table() and "success rate" in result.table()
+    # the same episode through run() with the no-op agent gives the same length as evaluate
+    noop = jarena_agents.build_agent("no_op")
+    ev = jarena.evaluate(noop, arena, jax.random.key(0), episodes=[2])
+    traj = jarena.run(noop, arena, jax.random.key(5), episode=2)
+    assert int(traj.length) == int(ev.lengths[0])
+    assert float(traj.episode_return) == float(ev.returns[0])
+    assert traj.infos.reward.shape == (500,) and traj.actions.shape == (500,)
+    assert not bool(traj.valid[int(traj.length)])
+
+
+def test_evaluate_is_deterministic_and_independent_of_batch(arena):
+    agent = jarena_agents.build_agent("no_op")
+    full = jarena.evaluate(agent, arena, jax.random.key(0))
+    some = jarena.evaluate(agent, arena, jax.random.key(1), episodes=[3, 7])
+    np.testing.assert_array_equal(full.returns[[3, 7]], some.returns)
+
+
+def test_validate_uses_the_val_split(arena):
+    result = jarena.validate(jarena_agents.build_agent("no_op"), arena)
+    assert result.split == "val" and list(result.episodes) == list(arena.episodes("val"))
+
+
+def test_evaluate_bad_split(arena):
+    with pytest.raises(ValueError, match="'eval' or 'val'"):
+        jarena.evaluate(jarena_agents.build_agent("random"), arena, split="train")
+
+
+def test_perform_parallel_auto_resets(arena):
+    rollout = jarena.perform_parallel(jarena_agents.build_agent("random"), arena, jax.random.key(0), 8, 100)
+    assert rollout.infos.reward.shape == (100, 8)
+    assert int(rollout.infos.done.sum()) > 8  # random cartpole episodes last ~20 steps
+    again = jarena.perform_parallel(jarena_agents.build_agent("random"), arena, jax.random.key(0), 8, 10,
+                                    start=(rollout.state, rollout.info))
+    continued = ~np.asarray(again.infos.done[0])  # episodes that did not end on the first new step
+    np.testing.assert_array_equal(np.asarray(again.infos.step[0])[continued],
+                                  np.asarray(rollout.info.step)[continued] + 1)
+
+
+def test_perform_parallel_shards_over_devices():
+    code = textwrap.dedent("""
+        import jax, jarena, jarena_agents
+        assert jax.local_device_count() == 4
+        arena = jarena.build_arena("classic|domain:cartpole")
+        r = jarena.perform_parallel(jarena_agents.build_agent("random"), arena, jax.random.key(0), 8, 20)
+        assert len(r.state.physics.x.sharding.device_set) == 4, r.state.physics.x.sharding
+        try:
+            jarena.perform_parallel(jarena_agents.build_agent("random"), arena, jax.random.key(0), 6, 5)
+        except ValueError as e:
+            assert "multiple of 4" in str(e)
+        else:
+            raise SystemExit("no error for an uneven batch")
+        print("sharded ok")
+    """)
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0 and "sharded ok" in out.stdout, out.stderr[-3000:]

@@ -1,0 +1,39 @@
+"""Every registered arena passes the contract checker (jarena.testing)."""
+
+import jax
+import pytest
+
+import jarena
+from jarena.testing import CHECKS
+
+ARENAS = jarena.list_arenas() + [
+    "classic|domain:cartpole,action:[sticky(0.2),noise(0.1),repeat(2),delay(1)],wrap:[reward_scale(0.5),success_bonus(1)]",
+]
+
+
+@pytest.mark.parametrize("arena_string", ARENAS)
+@pytest.mark.parametrize("check", CHECKS, ids=lambda c: c.__name__)
+def test_arena_contract(arena_string, check):
+    check(jarena.build_arena(arena_string), jax.random.key(0))
+
+
+def test_checker_catches_a_broken_arena():
+    """A task that reads a global counter (impure) makes the determinism check fail."""
+    import itertools
+
+    import jax.numpy as jnp
+
+    base = jarena.build_arena("classic|domain:cartpole")
+    counter = itertools.count()
+
+    def reset(key, physics, outcome, params):
+        return outcome.replace(goal=jnp.full((1,), float(next(counter)))), ()
+
+    def update(state, outcome, transition, params):
+        return outcome.replace(goal=jnp.full((1,), float(next(counter)))), state
+
+    broken = jarena.Arena(dynamics=base.dynamics, sensor=base.sensor,
+                          task=jarena.chain(base.task, jarena.Task(update=update, reset=reset)))
+    from jarena.testing import check_determinism
+    with pytest.raises(AssertionError):
+        check_determinism(broken, jax.random.key(0))
