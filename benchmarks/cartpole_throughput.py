@@ -136,8 +136,12 @@ def make_loop(variant: str, batch: int):
 # ---------------------------------------------------------------------------------------------- timing
 
 
-def time_variant(variant: str, batch: int, steps: int, repeats: int, unroll: int, seed: int = 0) -> dict:
-    """Compiles and times ``steps`` steps of ``batch`` arenas; returns seconds and steps per second."""
+def time_variant(variant: str, batch: int, steps: int, repeats: int, unroll: int, seed: int = 0,
+                 dump_hlo: str | None = None) -> dict:
+    """Compiles and times ``steps`` steps of ``batch`` arenas; returns seconds and steps per second.
+
+    With ``dump_hlo`` (a folder), writes the optimised HLO of the compiled program there.
+    """
     init, body = make_loop(variant, batch)
 
     def run(carry):
@@ -151,6 +155,10 @@ def time_variant(variant: str, batch: int, steps: int, repeats: int, unroll: int
     t0 = time.perf_counter()
     compiled = jax.jit(run).lower(carry).compile()
     compile_s = time.perf_counter() - t0
+    if dump_hlo:
+        os.makedirs(dump_hlo, exist_ok=True)
+        with open(os.path.join(dump_hlo, f"{variant}_B{batch}.hlo.txt"), "w") as f:
+            f.write(compiled.as_text())
     jax.block_until_ready(compiled(carry))  # warm-up
     times = []
     for _ in range(repeats):
@@ -289,6 +297,8 @@ def parse_args(argv=None):
                         "gymnax: require it; none: run ours alone")
     p.add_argument("--out", default=None, help="write the table to this .md file and the raw numbers beside it "
                    "as .json (or the other way round when it ends in .json)")
+    p.add_argument("--dump-hlo", metavar="DIR", default=None,
+                   help="write each compiled program's optimised HLO to DIR (to read what XLA made of a loop)")
     p.add_argument("--no-check", action="store_true", help="skip the episode-length check before timing")
     args = p.parse_args(argv)
     gpu = jax.default_backend() != "cpu"
@@ -328,7 +338,7 @@ def main(argv=None) -> int:
     rows = []
     for b in args.batch_sizes:
         for v in args.variant_list:
-            r = time_variant(v, b, args.steps, args.repeats, args.unroll)
+            r = time_variant(v, b, args.steps, args.repeats, args.unroll, dump_hlo=args.dump_hlo)
             rows.append(r)
             print(f"B={b:>8} {v:>11}: {r['steps_per_s']:.3e} steps/s (median {r['steps_per_s_median']:.3e}), "
                   f"{r['best_s'] * 1e3:.2f} ms/call, compile {r['compile_s']:.2f} s", flush=True)

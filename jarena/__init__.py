@@ -9,6 +9,7 @@ composable transforms; everything builds from a string::
 """
 
 from jarena import arenas as _arenas  # noqa: F401  (registers the built-in builders)
+from jarena import tasks, testing, tools
 from jarena.building import (
     ArenaStringError,
     build_arena,
@@ -19,7 +20,6 @@ from jarena.building import (
     register_tool,
 )
 from jarena.configs import retrieve_config
-from jarena import tasks, tools
 from jarena.core import spec
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
@@ -39,5 +39,5 @@ __all__ = [
     "Discrete", "Dynamics", "EvalResult", "Final", "Info", "Outcome", "Sensor", "SpecError", "Task",
     "Trajectory", "Transition", "auto_reset", "batch_reset", "batch_step", "build_arena", "chain", "evaluate",
     "list_arenas", "parse_arena_string", "perform_parallel", "register_arena_builder", "register_task",
-    "register_tool", "retrieve_config", "run", "spec", "validate",
+    "register_tool", "retrieve_config", "run", "spec", "tasks", "testing", "tools", "validate",
 ]

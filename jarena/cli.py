@@ -26,7 +26,6 @@ def _parse_override(text: str) -> tuple[str, Any]:
 def _cmd_list(args) -> int:
     import jarena
     import jarena_agents
-
     from jarena.building.builder import arena_tags
 
     print("Arenas (build with jarena.build_arena(string)):")

@@ -128,14 +128,13 @@ class Arena:
         if episode is None:
             if key is None:
                 raise ValueError("reset() needs a key, an episode id, or both")
-            key_episode, rng = jax.random.split(key)
-            episode = episodes_lib.sample_train_episode(key_episode)
+            episode = episodes_lib.sample_train_episode(jax.random.fold_in(key, 0))
         else:
             episode = jnp.asarray(episode, jnp.int32)
-            rng = None
-        key_dynamics, key_task, key_tool, key_rng = jax.random.split(episodes_lib.episode_key(episode), 4)
-        if rng is None:
-            rng = key_rng if key is None else jax.random.fold_in(key, 1)
+        episode_key = episodes_lib.episode_key(episode)
+        key_dynamics, key_task, key_tool = (jax.random.fold_in(episode_key, i) for i in range(3))
+        # The key that seeds the episodes after this one under auto-reset.
+        rng = jax.random.fold_in(episode_key if key is None else key, 1 if key is not None else 3)
         physics = self.dynamics.init(key_dynamics, params.dynamics)
         outcome, task_state = self.task.reset(key_task, physics, Outcome.empty(), params.task)
         tool_state = self.tool.reset(key_tool, params.tool, self.dynamics.control_spec)
@@ -145,7 +144,12 @@ class Arena:
 
     def step(self, state: ArenaState, action: PyTree, params: ArenaParams | None = None
              ) -> tuple[ArenaState, Info]:
-        """Applies ``action`` (validated against ``action_spec``) and returns the new state and info."""
+        """Applies ``action`` and returns the new state and info.
+
+        The action's shape and dtype are validated statically against ``action_spec`` (a clear
+        ``SpecError`` otherwise); its values are not: dynamics clip out-of-range controls themselves, as
+        Gymnasium's do.
+        """
         params = self.default_params() if params is None else params
         action = self.action_spec.validate(action, "action")
 
@@ -153,7 +157,8 @@ class Arena:
             physics, task_state = carry
             next_physics = self.dynamics.step(physics, control, params.dynamics)
             outcome, task_state = self.task.update(task_state, Outcome.empty(),
-                                                   Transition(physics, control, next_physics), params.task)
+                                                   Transition(physics, control, next_physics, params.dynamics),
+                                                   params.task)
             return (next_physics, task_state), outcome
 
         (physics, task_state), outcome, tool_state = self.tool.step(

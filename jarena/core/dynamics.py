@@ -26,7 +26,8 @@ class Dynamics:
       step: ``(physics, control, params) -> physics``, one low-level step of ``timestep`` seconds.
       control_spec: spec of the control accepted by ``step``.
       default_params: ``() -> params``; physical constants live here so users can vmap over them.
-      no_op: ``() -> control`` that applies no actuation (defaults to the spec's zeros).
+      no_op: ``() -> control`` that applies no actuation (defaults to the spec's zeros; set it for
+        discrete controls where index 0 actuates).
       timestep: seconds of simulated time per ``step``.
       render: optional host-side ``(physics, params, **kwargs) -> uint8 image (H, W, 3)``.
       name: a short name for messages.

@@ -3,7 +3,10 @@
 Every episode is named by an int32 id; its randomness (initial physics, goal, tool state) is derived
 from the id alone, so episode 17 is the same on every machine and at every batch size. Evaluation ids
 are ``0 .. n_eval - 1``, validation ids start at ``VAL_BASE``, and training draws ids uniformly from
-``[TRAIN_LOW, TRAIN_HIGH)``, a range disjoint from both.
+``[TRAIN_LOW, TRAIN_HIGH) = [2^30, 2^31)``, a range disjoint from both.
+
+Keys are derived with ``fold_in`` (one hash each, computed only where used), not ``split``: resets run
+on every step under auto-reset, so their PRNG work is kept to a minimum.
 """
 
 from __future__ import annotations
@@ -13,8 +16,8 @@ import jax.numpy as jnp
 
 EVAL_BASE = 0
 VAL_BASE = 1 << 20
-TRAIN_LOW = 1 << 24
-TRAIN_HIGH = (1 << 31) - 1
+TRAIN_LOW = 1 << 30
+TRAIN_HIGH = 1 << 31  # exclusive; the largest id is the largest int32
 
 SPLITS = ("train", "val", "eval")
 
@@ -27,8 +30,9 @@ def episode_key(episode: jax.Array) -> jax.Array:
 
 
 def sample_train_episode(key: jax.Array) -> jax.Array:
-    """A training episode id drawn uniformly from ``[TRAIN_LOW, TRAIN_HIGH)``, int32 scalar."""
-    return jax.random.randint(key, (), TRAIN_LOW, TRAIN_HIGH, dtype=jnp.int32)
+    """A training episode id drawn uniformly from ``[TRAIN_LOW, TRAIN_HIGH)``, int32 scalar (one 32-bit draw)."""
+    bits = jax.random.bits(key, (), jnp.uint32)
+    return ((bits >> 2) | jnp.uint32(TRAIN_LOW)).astype(jnp.int32)
 
 
 def split_episodes(split: str, num_val: int, num_eval: int) -> range:

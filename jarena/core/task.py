@@ -60,7 +60,7 @@ class Task:
                 raise TypeError(f"chain of tasks got {t!r}, which is not a Task")
 
         def reset(key, physics, outcome, params):
-            keys = jax.random.split(key, len(tasks)) if tasks else ()
+            keys = [jax.random.fold_in(key, i) for i in range(len(tasks))]
             states = []
             for task, k, p in zip(tasks, keys, params, strict=True):
                 outcome, s = task.reset(k, physics, outcome, p)

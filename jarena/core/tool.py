@@ -92,7 +92,7 @@ class ActionTool:
             return action
 
         def reset(key, params, control_spec):
-            keys = jax.random.split(key, n) if n else ()
+            keys = [jax.random.fold_in(key, i) for i in range(n)]
             return tuple(t.reset(k, p, s) for t, k, p, s in
                          zip(tools, keys, params, inner_specs(control_spec), strict=True))
 

@@ -24,11 +24,14 @@ class Transition:
       previous: physics state before the step.
       control: the low-level control applied (after the action tool), in the dynamics' control spec.
       physics: physics state after the step.
+      dynamics_params: the dynamics' params (read-only for tasks: e.g. a torque limit that the reward
+        must agree with under domain randomisation).
     """
 
     previous: PyTree
     control: PyTree
     physics: PyTree
+    dynamics_params: PyTree = None
 
 
 @struct.dataclass

@@ -87,7 +87,7 @@ def check_no_retrace(arena: Arena, key: jax.Array) -> None:
             for t in range(2):
                 state, _ = step(state, arena.sample_action(jax.random.fold_in(key, 100 * i + t)), params)
     except AssertionError as e:
-        raise AssertionError(f"{arena.name}: reset or step retraced on new keys, states, actions or params: {e}")
+        raise AssertionError(f"{arena.name}: reset or step retraced on new keys, states, actions or params: {e}") from e
     finally:
         chex.clear_trace_counter()
 

@@ -34,13 +34,17 @@ def _angle_normalize(x):
 
 
 def make_pendulum_oracle(config=None) -> Agent:
+    """The oracle for ``classic|domain:pendulum`` with the default physical constants of ``Pendulum-v1``."""
+    from jarena.arenas.classic.pendulum import PendulumParams
+
     cfg = make_config(PendulumOracleConfig, config, agent="oracle_pendulum")
+    dp = PendulumParams()
 
     def init(key, spec, num_arenas):
         return SpecState(spec)
 
     def act(state, info, key, privileged):
-        p, dp = privileged.physics, privileged_params(privileged)
+        p = privileged.physics
         theta, theta_dot = _angle_normalize(p.theta), p.theta_dot
         inertia = dp.m * dp.l**2 / 3.0
         energy = 0.5 * inertia * theta_dot**2 + 0.5 * dp.m * dp.g * dp.l * (jnp.cos(theta) - 1.0)
@@ -53,13 +57,6 @@ def make_pendulum_oracle(config=None) -> Agent:
         return jnp.clip(torque[..., None], low, high), state
 
     return Agent(name="oracle_pendulum", init=init, act=act, privileged=True, config=dataclasses.asdict(cfg))
-
-
-def privileged_params(privileged):
-    """The pendulum's physical constants (defaults of ``Pendulum-v1``)."""
-    from jarena.arenas.classic.pendulum import PendulumParams
-
-    return PendulumParams()
 
 
 register_agent("oracle_pendulum", make_pendulum_oracle, tags=("oracle",))

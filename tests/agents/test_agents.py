@@ -34,3 +34,12 @@ def test_cartpole_oracle_reaches_success():
     assert result.summary()["return_mean"] == 500.0
     random = jarena.evaluate(jarena_agents.build_agent("random"), arena, jax.random.key(0))
     assert random.summary()["return_mean"] < 50
+
+
+def test_pendulum_oracle_swings_up_and_stabilises():
+    arena = jarena.build_arena("classic|domain:pendulum,task:swingup")
+    oracle = jarena.evaluate(jarena_agents.build_agent("oracle_pendulum"), arena, jax.random.key(0))
+    assert oracle.summary()["success_rate"] == 1.0
+    assert oracle.summary()["return_mean"] > -200
+    random = jarena.evaluate(jarena_agents.build_agent("random"), arena, jax.random.key(0))
+    assert random.summary()["return_mean"] < -800

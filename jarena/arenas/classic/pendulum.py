@@ -48,7 +48,6 @@ class PendulumParams:
 
 @struct.dataclass
 class SwingupParams:
-    max_torque: jax.Array = 2.0  # the reward's torque clip (the task does not see the dynamics' params)
     success_angle: jax.Array = 0.1
     success_speed: jax.Array = 1.0
 
@@ -96,7 +95,8 @@ def swingup() -> Task:
 
     def update(state, outcome, transition, params):
         prev = transition.previous
-        u = jnp.clip(transition.control[0], -params.max_torque, params.max_torque)
+        max_torque = transition.dynamics_params.max_torque  # the same clip as the dynamics
+        u = jnp.clip(transition.control[0], -max_torque, max_torque)
         costs = angle_normalize(prev.theta) ** 2 + 0.1 * prev.theta_dot**2 + 0.001 * u**2
         physics = transition.physics
         return outcome.replace(reward=outcome.reward - costs, success=succeeded(physics, params),
