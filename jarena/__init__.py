@@ -31,6 +31,7 @@ from jarena.core.task import Task
 from jarena.core.tool import ActionTool
 from jarena.core.types import ArenaParams, ArenaState, Final, Info, Outcome, Transition
 from jarena.runners import EvalResult, Trajectory, evaluate, perform_parallel, run, validate
+from jarena.training import TrainResult, train_and_evaluate
 
 __version__ = "0.1.0"
 
@@ -39,5 +40,6 @@ __all__ = [
     "Discrete", "Dynamics", "EvalResult", "Final", "Info", "Outcome", "Sensor", "SpecError", "Task",
     "Trajectory", "Transition", "auto_reset", "batch_reset", "batch_step", "build_arena", "chain", "evaluate",
     "list_arenas", "parse_arena_string", "perform_parallel", "register_arena_builder", "register_task",
-    "register_tool", "retrieve_config", "run", "spec", "tasks", "testing", "tools", "validate",
+    "register_tool", "retrieve_config", "run", "spec", "tasks", "testing", "tools", "TrainResult", "train_and_evaluate",
+    "validate",
 ]

@@ -1,6 +1,7 @@
-"""The ``jarena`` command line: list arenas and agents, evaluate an agent on an arena.
+"""The ``jarena`` command line: list arenas and agents, train and evaluate agents.
 
     jarena list
+    jarena train ppo "classic|domain:cartpole" --run-dir runs/ppo-cartpole
     jarena evaluate oracle_cartpole "classic|domain:cartpole,task:balance"
     jarena evaluate random "classic|domain:pendulum" --split val --set key=value
 """
@@ -65,6 +66,34 @@ def _cmd_evaluate(args) -> int:
     return 0
 
 
+def _cmd_train(args) -> int:
+    import jax
+
+    import jarena
+    import jarena_agents
+    from jarena.training import train_and_evaluate
+
+    arena = jarena.build_arena(args.arena)
+    config = jarena.retrieve_config(args.agent, arena, args.config)
+    config.update(dict(args.set or []))
+    if args.steps is not None:
+        config["total_steps"] = args.steps
+    agent = jarena_agents.build_agent(args.agent, config)
+    steps = agent.settings.total_steps if getattr(agent, "settings", None) is not None else args.steps
+    print(f"training {agent.name!r} on {args.arena!r} for {steps} environment steps "
+          f"on {jax.devices()[0].platform} (seed {args.seed})", flush=True)
+    result = train_and_evaluate(agent, arena, jax.random.key(args.seed), run_dir=args.run_dir,
+                                progress=not args.no_progress)
+    last = result.history[-1]
+    print(f"trained {last['env_steps']} steps in {last['seconds']:.1f} s "
+          f"({last['env_steps'] / max(last['seconds'], 1e-9):.3g} steps/s, compile included)")
+    print(result.evaluation.table())
+    if args.run_dir:
+        print(f"run directory: {args.run_dir} (config, train.csv, validation.csv, evaluation.json, "
+              "learning_curve.png)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="jarena", description="JAX-native arenas and agents.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -72,6 +101,19 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("list", help="list buildable arenas and registered agents")
     p.add_argument("--tag", default=None, help="only arenas with this tag (e.g. benchmark)")
     p.set_defaults(fn=_cmd_list)
+
+    p = sub.add_parser("train", help="train an agent, validating periodically, then evaluate it and print a table",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("agent", help="trainable agent name (e.g. ppo)")
+    p.add_argument("arena", help='arena string, e.g. "classic|domain:cartpole"')
+    p.add_argument("--steps", type=int, default=None, help="environment steps (default: the config's total_steps)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the whole run")
+    p.add_argument("--run-dir", default=None, help="write logs, results and a learning-curve plot here")
+    p.add_argument("--config", default="default", help="config name under configs/<agent>/<arena>/")
+    p.add_argument("--set", action="append", type=_parse_override, metavar="KEY=VALUE",
+                   help="override a config key (repeatable)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(fn=_cmd_train)
 
     p = sub.add_parser("evaluate", help="evaluate an agent on an arena's fixed episodes and print a results table",
                        formatter_class=argparse.ArgumentDefaultsHelpFormatter)

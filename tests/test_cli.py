@@ -24,3 +24,11 @@ def test_errors_are_reported_not_raised(capsys):
     assert "unknown classic domain 'nosuch'" in capsys.readouterr().err
     assert main(["evaluate", "oracle_cartpole", "classic|domain:cartpole", "--set", "bad=1"]) == 2
     assert "unknown config key" in capsys.readouterr().err
+
+
+def test_train_prints_progress_and_table(capsys, tmp_path):
+    assert main(["train", "ppo", "classic|domain:cartpole", "--steps", "8192", "--no-progress",
+                 "--set", "rollout_length=64", "--run-dir", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "trained 8192 steps" in out and "| return" in out
+    assert (tmp_path / "learning_curve.png").is_file()

@@ -1,0 +1,167 @@
+"""``train_and_evaluate``: train a trainable agent in compiled chunks, validate, evaluate, log.
+
+A trainable agent extends the agent protocol with ``init_training(key, arena) -> train_state``,
+``train(train_state, arena, num_updates) -> (train_state, metrics)`` (jittable; metrics have a
+leading update axis), ``policy(train_state, spec, deterministic) -> agent_state`` and ``settings``
+(its config, with ``steps_per_update`` and ``num_updates``). Host work (progress bar, logs,
+validation) happens between compiled chunks, never per step.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+
+from jarena.core.arena import Arena
+from jarena.runners.evaluate import evaluate, validate
+from jarena.runners.results import EvalResult
+
+
+@dataclasses.dataclass
+class TrainResult:
+    """train_state: the final training state; history: one dict per chunk; evaluation: on the eval split."""
+
+    train_state: Any
+    history: list[dict[str, float]]
+    validations: list[dict[str, float]]
+    evaluation: EvalResult
+
+
+def _check_trainable(agent) -> None:
+    missing = [n for n in ("init_training", "train", "policy", "settings") if getattr(agent, n, None) is None]
+    if missing:
+        raise TypeError(f"agent {agent.name!r} is not trainable (missing {missing}); trainable agents: "
+                        "build one such as jarena_agents.build_agent('ppo')")
+
+
+def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int | None = None,
+                       chunk_updates: int | None = None, validate_every: int | None = None,
+                       run_dir: str | Path | None = None, progress: bool = True) -> TrainResult:
+    """Trains ``agent`` on ``arena``, validating periodically, and evaluates it on the eval episodes.
+
+    Args:
+      agent: a trainable agent (e.g. ``build_agent("ppo", config)``).
+      arena: the arena to train on; validation and evaluation use its ``val`` and ``eval`` episodes.
+      key: PRNG key; the run is a deterministic function of it.
+      total_steps: environment steps to train for (default: the agent config's ``total_steps``).
+      chunk_updates: updates per compiled chunk (default: about 20 chunks per run).
+      validate_every: validate every this many chunks (default: 5; 0 disables).
+      run_dir: if given, writes ``config.json``, ``train.csv``, ``validation.csv``, ``evaluation.json``
+        and ``learning_curve.png`` there.
+      progress: show a progress bar with steps per second, current return and ETA.
+    """
+    _check_trainable(agent)
+    settings = agent.settings
+    steps_per_update = settings.steps_per_update
+    total_steps = total_steps or settings.total_steps
+    num_updates = max(1, math.ceil(total_steps / steps_per_update))
+    chunk_updates = chunk_updates or max(1, math.ceil(num_updates / 20))
+    num_chunks = math.ceil(num_updates / chunk_updates)
+    num_updates = num_chunks * chunk_updates  # equal chunks: one compilation (may add < 1 chunk of steps)
+    validate_every = 5 if validate_every is None else validate_every
+    run_path = Path(run_dir) if run_dir is not None else None
+    if run_path is not None:
+        run_path.mkdir(parents=True, exist_ok=True)
+        (run_path / "config.json").write_text(json.dumps(
+            {"agent": agent.name, "arena": arena.build_string or arena.name, "config": agent.config,
+             "total_steps": total_steps, "jax": jax.__version__, "device": str(jax.devices()[0])},
+            indent=2, default=str))
+
+    train_state = jax.jit(agent.init_training, static_argnums=1)(key, arena)
+    chunk = jax.jit(agent.train, static_argnums=(1, 2), donate_argnums=0)
+    history, validations = [], []
+    bar = _progress(num_updates * steps_per_update, progress)
+    start = time.perf_counter()
+    done_updates = 0
+    for index in range(num_chunks):
+        n = min(chunk_updates, num_updates - done_updates)
+        train_state, metrics = chunk(train_state, arena, n)
+        metrics = jax.device_get(metrics)
+        done_updates += n
+        episodes = float(np.sum(metrics["episodes"]))
+        weights = np.asarray(metrics["episodes"], np.float64)
+        row = {"update": done_updates, "env_steps": done_updates * steps_per_update,
+               "seconds": time.perf_counter() - start,
+               "episode_return": float(np.sum(np.asarray(metrics["episode_return"]) * weights) / episodes)
+               if episodes else float("nan"), "episodes": episodes}
+        row.update({k: float(np.mean(v)) for k, v in metrics.items() if k not in ("episodes", "episode_return")})
+        history.append(row)
+        bar.update(n * steps_per_update, row["episode_return"])
+        if validate_every and ((index + 1) % validate_every == 0) and index + 1 < num_chunks:
+            result = validate(agent, arena, jax.random.key(index),
+                              agent_state=agent.policy(train_state, arena.spec, True))
+            validations.append({"update": done_updates, "env_steps": row["env_steps"], **result.summary()})
+            bar.note(f"validation return {validations[-1]['return_mean']:.1f}")
+    bar.close()
+    evaluation = evaluate(agent, arena, jax.random.key(0), agent_state=agent.policy(train_state, arena.spec, True))
+    if run_path is not None:
+        _write_csv(run_path / "train.csv", history)
+        _write_csv(run_path / "validation.csv", validations)
+        (run_path / "evaluation.json").write_text(json.dumps(
+            {"summary": evaluation.summary(), "episodes": evaluation.per_episode()}, indent=2))
+        _plot(run_path / "learning_curve.png", history, validations, evaluation, agent.name, arena.name)
+    return TrainResult(train_state=train_state, history=history, validations=validations, evaluation=evaluation)
+
+
+def _write_csv(path: Path, rows: list[dict[str, float]]) -> None:
+    if not rows:
+        return
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def _plot(path: Path, history, validations, evaluation, agent: str, arena: str) -> None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:  # plotting is optional
+        return
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot([r["env_steps"] for r in history], [r["episode_return"] for r in history], label="training episodes")
+    if validations:
+        ax.plot([r["env_steps"] for r in validations], [r["return_mean"] for r in validations], "o-",
+                label="validation")
+    ax.axhline(evaluation.summary()["return_mean"], color="k", ls="--", label="final evaluation")
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel("episode return")
+    ax.set_title(f"{agent} on {arena}")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+class _progress:
+    """A tqdm bar over environment steps showing steps/s, the latest return and ETA (or nothing)."""
+
+    def __init__(self, total: int, enabled: bool):
+        self.bar = None
+        if enabled:
+            from tqdm.auto import tqdm
+
+            self.bar = tqdm(total=total, unit="step", unit_scale=True, dynamic_ncols=True, desc="training")
+
+    def update(self, steps: int, episode_return: float) -> None:
+        if self.bar is not None:
+            self.bar.set_postfix(ret=f"{episode_return:.1f}", refresh=False)
+            self.bar.update(steps)
+
+    def note(self, text: str) -> None:
+        if self.bar is not None:
+            self.bar.write(text)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()

@@ -1,0 +1,220 @@
+"""PPO (Schulman et al., 2017) as a jarena agent that trains end to end on device.
+
+Acting follows the agent protocol (``init / act``, state batched over arenas, shared parameters);
+training adds ``init_training(key, arena) -> PPOTrainState`` and
+``train(train_state, arena, num_updates) -> (train_state, metrics)``, a jittable chunk of updates.
+Each update collects ``rollout_length`` steps from ``num_arenas`` auto-resetting arenas, computes GAE
+(bootstrapping truncated episodes from ``info.final``), and runs ``epochs`` passes of ``minibatches``
+clipped-objective gradient steps. A whole run is a function of a key, so seeds ``vmap``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import struct
+
+from jarena.core.agent import Agent
+from jarena.core.arena import Arena, ArenaSpec
+from jarena.core.batching import batch_reset, batch_step
+from jarena.core.types import ArenaState, Info
+from jarena_agents import networks, normalizer
+from jarena_agents.config import make_config
+from jarena_agents.ppo.losses import compute_gae, ppo_loss
+from jarena_agents.registry import register_agent
+
+PyTree = Any
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOConfig:
+    """PPO hyperparameters (defaults: PureJaxRL's CartPole settings)."""
+
+    num_arenas: int = 4
+    rollout_length: int = 128
+    epochs: int = 4
+    minibatches: int = 4
+    learning_rate: float = 2.5e-4
+    anneal_lr: bool = True
+    total_steps: int = 500_000
+    discount: float = 0.99
+    gae_lambda: float = 0.95
+    clip_epsilon: float = 0.2
+    entropy_coef: float = 0.01
+    value_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    hidden: tuple = (64, 64)
+    normalize_observations: bool = False
+    reward_scale: float = 1.0
+
+    @property
+    def steps_per_update(self) -> int:
+        return self.num_arenas * self.rollout_length
+
+    @property
+    def num_updates(self) -> int:
+        return max(1, self.total_steps // self.steps_per_update)
+
+
+@struct.dataclass
+class PPOState:
+    """Acting state: shared parameters and normaliser; ``deterministic`` selects eval mode (static)."""
+
+    params: PyTree
+    observation_stats: normalizer.RunningStatistics
+    spec: ArenaSpec = struct.field(pytree_node=False)
+    deterministic: bool = struct.field(pytree_node=False, default=False)
+
+
+@struct.dataclass
+class PPOTrainState:
+    """Everything a run needs to continue bit for bit (network, optimiser, normaliser, arenas, RNG)."""
+
+    params: PyTree
+    opt_state: PyTree
+    observation_stats: normalizer.RunningStatistics
+    arena_state: ArenaState
+    info: Info
+    episode_return: jax.Array  # (B,) return of the running episodes
+    key: jax.Array
+    update: jax.Array  # int32, updates done
+    env_steps: jax.Array  # int32 (wraps past 2^31: use update * steps_per_update for long runs)
+
+
+def make_ppo(config=None) -> Agent:
+    cfg = make_config(PPOConfig, config, agent="ppo")
+    if cfg.steps_per_update % cfg.minibatches:
+        raise ValueError(f"ppo: num_arenas * rollout_length = {cfg.steps_per_update} must be divisible by "
+                         f"minibatches = {cfg.minibatches}")
+
+    def network(spec: ArenaSpec):
+        networks.check_supported(spec.action, "ppo")
+        return networks.ActorCritic(spec.action, tuple(cfg.hidden))
+
+    def optimizer():
+        lr = cfg.learning_rate
+        if cfg.anneal_lr:
+            lr = optax.linear_schedule(cfg.learning_rate, 0.0, cfg.num_updates * cfg.epochs * cfg.minibatches)
+        return optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm), optax.adam(lr, eps=1e-5))
+
+    def forward(spec, params, stats, observation):
+        if cfg.normalize_observations:
+            observation = normalizer.normalize(stats, observation)
+        return network(spec).apply(params, observation)
+
+    def init(key, spec: ArenaSpec, num_arenas: int) -> PPOState:
+        dim = networks.observation_size(spec)
+        params = network(spec).init(key, jnp.zeros((1, dim), jnp.float32))
+        return PPOState(params=params, observation_stats=normalizer.init(dim), spec=spec)
+
+    def act(state: PPOState, info: Info, key, privileged=None):
+        policy, _ = forward(state.spec, state.params, state.observation_stats, networks.flatten_observation(info))
+        raw, _, _ = networks.sample_action(state.spec.action, policy, key, state.deterministic)
+        return networks.to_env_action(state.spec.action, raw), state
+
+    def init_training(key, arena: Arena) -> PPOTrainState:
+        key, init_key, reset_key = jax.random.split(key, 3)
+        acting = init(init_key, arena.spec, cfg.num_arenas)
+        arena_state, info = batch_reset(arena, reset_key, cfg.num_arenas)
+        return PPOTrainState(params=acting.params, opt_state=optimizer().init(acting.params),
+                             observation_stats=acting.observation_stats, arena_state=arena_state, info=info,
+                             episode_return=jnp.zeros((cfg.num_arenas,), jnp.float32), key=key,
+                             update=jnp.zeros((), jnp.int32), env_steps=jnp.zeros((), jnp.int32))
+
+    def policy(train_state: PPOTrainState, spec: ArenaSpec, deterministic: bool = True) -> PPOState:
+        """The acting state of a trained agent (eval mode is deterministic)."""
+        return PPOState(params=train_state.params, observation_stats=train_state.observation_stats, spec=spec,
+                        deterministic=deterministic)
+
+    def one_update(arena: Arena, ts: PPOTrainState):
+        spec = arena.spec
+        arena_params = arena.default_params()
+
+        def rollout_step(carry, key):
+            arena_state, info, episode_return = carry
+            observation = networks.flatten_observation(info)
+            policy_out, value = forward(spec, ts.params, ts.observation_stats, observation)
+            raw, logp, _ = networks.sample_action(spec.action, policy_out, key, False)
+            arena_state, next_info = batch_step(arena, arena_state, networks.to_env_action(spec.action, raw),
+                                                arena_params)
+            final_observation = networks.flatten_observation(
+                next_info.replace(observation=next_info.final.observation, goal=next_info.final.goal))
+            episode_return = episode_return + next_info.reward
+            finished = next_info.done
+            record = dict(observation=observation, raw_action=raw, log_prob=logp, value=value,
+                          reward=next_info.reward * cfg.reward_scale, terminated=next_info.terminated,
+                          done=finished, final_observation=final_observation,
+                          finished_return=jnp.where(finished, episode_return, 0.0))
+            episode_return = jnp.where(finished, 0.0, episode_return)
+            return (arena_state, next_info, episode_return), record
+
+        key, rollout_key, shuffle_key = jax.random.split(ts.key, 3)
+        (arena_state, info, episode_return), batch = jax.lax.scan(
+            rollout_step, (ts.arena_state, ts.info, ts.episode_return),
+            jax.random.split(rollout_key, cfg.rollout_length))
+        _, next_values = forward(spec, ts.params, ts.observation_stats, batch["final_observation"])
+        advantages, returns = compute_gae(batch["reward"], batch["value"], next_values, batch["terminated"],
+                                          batch["done"], cfg.discount, cfg.gae_lambda)
+        stats = ts.observation_stats
+        if cfg.normalize_observations:
+            stats = normalizer.update(stats, batch["observation"])
+
+        samples = dict(observation=batch["observation"], raw_action=batch["raw_action"],
+                       log_prob=batch["log_prob"], value=batch["value"], advantages=advantages, returns=returns)
+        samples = jax.tree_util.tree_map(lambda x: x.reshape((cfg.steps_per_update,) + x.shape[2:]), samples)
+
+        def loss_fn(params, mb):
+            policy_out, values = forward(spec, params, stats, mb["observation"])
+            logp = networks.log_prob(spec.action, policy_out, mb["raw_action"])
+            terms = ppo_loss(logp, mb["log_prob"], mb["advantages"], values, mb["value"], mb["returns"],
+                             networks.entropy(spec.action, policy_out), clip_epsilon=cfg.clip_epsilon,
+                             value_coef=cfg.value_coef, entropy_coef=cfg.entropy_coef)
+            return terms.total, terms
+
+        def sgd_step(carry, mb):
+            params, opt_state = carry
+            grads, terms = jax.grad(loss_fn, has_aux=True)(params, mb)
+            updates, opt_state = optimizer().update(grads, opt_state, params)
+            return (optax.apply_updates(params, updates), opt_state), terms
+
+        def epoch(carry, key):
+            order = jax.random.permutation(key, cfg.steps_per_update)
+            minibatches = jax.tree_util.tree_map(
+                lambda x: x[order].reshape((cfg.minibatches, -1) + x.shape[1:]), samples)
+            return jax.lax.scan(sgd_step, carry, minibatches)
+
+        (params, opt_state), terms = jax.lax.scan(epoch, (ts.params, ts.opt_state),
+                                                  jax.random.split(shuffle_key, cfg.epochs))
+        finished = jnp.sum(batch["done"])
+        metrics = dict(episodes=finished,
+                       episode_return=jnp.sum(batch["finished_return"]) / jnp.maximum(finished, 1),
+                       **{k: jnp.mean(v) for k, v in dataclasses.asdict(terms).items()})
+        ts = PPOTrainState(params=params, opt_state=opt_state, observation_stats=stats, arena_state=arena_state,
+                           info=info, episode_return=episode_return, key=key, update=ts.update + 1,
+                           env_steps=ts.env_steps + cfg.steps_per_update)
+        return ts, metrics
+
+    def train(train_state: PPOTrainState, arena: Arena, num_updates: int):
+        """Runs ``num_updates`` updates (static) in one ``lax.scan``; metrics have a leading update axis."""
+        return jax.lax.scan(lambda ts, _: one_update(arena, ts), train_state, None, length=num_updates)
+
+    agent = Agent(name="ppo", init=init, act=act, config=dataclasses.asdict(cfg))
+    return PPOAgent(**{f.name: getattr(agent, f.name) for f in dataclasses.fields(Agent)},
+                    init_training=init_training, train=train, policy=policy, settings=cfg)
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOAgent(Agent):
+    """A trainable agent: the agent protocol plus ``init_training``, ``train`` and ``policy``."""
+
+    init_training: Any = None
+    train: Any = None
+    policy: Any = None
+    settings: Any = dataclasses.field(default=None, compare=False, hash=False)
+
+
+register_agent("ppo", make_ppo, tags=("trainable", "rl"))
