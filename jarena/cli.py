@@ -12,6 +12,7 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import yaml
@@ -47,14 +48,21 @@ def _cmd_evaluate(args) -> int:
 
     arena = jarena.build_arena(args.arena)
     config = jarena.retrieve_config(args.agent, arena, args.config)
+    saved = Path(args.checkpoint or "", "config.json")
+    if args.checkpoint and saved.is_file():
+        config = json.loads(saved.read_text()).get("config") or config  # the config the run trained with
     config.update(dict(args.set or []))
     agent = jarena_agents.build_agent(args.agent, config)
+    agent_state = None
+    if args.checkpoint:
+        agent_state = _restore_policy(agent, arena, args.checkpoint)
     episodes = list(arena.episodes(args.split))[: args.episodes] if args.episodes else None
     n = len(episodes) if episodes is not None else len(arena.episodes(args.split))
     print(f"evaluating {agent.name!r} on {args.arena!r}: {n} {args.split} episodes in parallel "
           f"on {jax.devices()[0].platform} ...", flush=True)
     start = time.perf_counter()
-    result = jarena.evaluate(agent, arena, jax.random.key(args.seed), split=args.split, episodes=episodes)
+    result = jarena.evaluate(agent, arena, jax.random.key(args.seed), split=args.split, episodes=episodes,
+                             agent_state=agent_state)
     seconds = time.perf_counter() - start
     steps = int(result.lengths.sum())
     print(f"done in {seconds:.1f} s (compile included), {steps} agent steps")
@@ -64,6 +72,30 @@ def _cmd_evaluate(args) -> int:
             json.dump({"summary": result.summary(), "episodes": result.per_episode()}, f, indent=2)
         print(f"wrote {args.json}")
     return 0
+
+
+def _restore_policy(agent, arena, run_dir: str):
+    """The deterministic policy of the latest checkpoint in ``run_dir`` (or its checkpoints/ folder)."""
+    import jax
+
+    from jarena.checkpoint import Checkpointer
+
+    if getattr(agent, "init_training", None) is None:
+        raise ValueError(f"agent {agent.name!r} is not trainable and has no checkpoints")
+    path = Path(run_dir)
+    folder = path / "checkpoints" if (path / "checkpoints").is_dir() else path
+    checkpointer = Checkpointer(folder)
+    if checkpointer.latest_step() is None:
+        raise FileNotFoundError(f"no checkpoint found in {folder}")
+    template = jax.jit(agent.init_training, static_argnums=1)(jax.random.key(0), arena)
+    try:
+        train_state, _ = checkpointer.restore(template)
+    except Exception as e:  # orbax raises several types for a mismatched or damaged checkpoint
+        raise ValueError(f"checkpoint in {folder} does not fit agent {agent.name!r} with config {agent.config} "
+                         f"on {arena.name!r}: {e}") from e
+    checkpointer.close()
+    print(f"restored checkpoint {checkpointer.latest_step()} from {folder}")
+    return agent.policy(train_state, arena.spec, True)
 
 
 def _cmd_train(args) -> int:
@@ -125,6 +157,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", default="default", help="config name under configs/<agent>/<arena>/")
     p.add_argument("--set", action="append", type=_parse_override, metavar="KEY=VALUE",
                    help="override a config key (repeatable)")
+    p.add_argument("--checkpoint", default=None, metavar="RUN_DIR",
+                   help="evaluate the latest checkpoint of a training run directory")
     p.add_argument("--json", default=None, help="also write the summary and per-episode results to this file")
     p.set_defaults(fn=_cmd_evaluate)
     return parser

@@ -20,6 +20,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from jarena.checkpoint import Checkpointer
 from jarena.core.arena import Arena
 from jarena.runners.evaluate import evaluate, validate
 from jarena.runners.results import EvalResult
@@ -27,12 +28,13 @@ from jarena.runners.results import EvalResult
 
 @dataclasses.dataclass
 class TrainResult:
-    """train_state: the final training state; history: one dict per chunk; evaluation: on the eval split."""
+    """train_state: the final training state; history: one dict per chunk; evaluation: on the eval split
+    (``None`` when stopped early)."""
 
     train_state: Any
     history: list[dict[str, float]]
     validations: list[dict[str, float]]
-    evaluation: EvalResult
+    evaluation: EvalResult | None
 
 
 def _check_trainable(agent) -> None:
@@ -44,7 +46,8 @@ def _check_trainable(agent) -> None:
 
 def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int | None = None,
                        chunk_updates: int | None = None, validate_every: int | None = None,
-                       run_dir: str | Path | None = None, progress: bool = True) -> TrainResult:
+                       checkpoint_every: int | None = None, run_dir: str | Path | None = None,
+                       progress: bool = True, stop_after_chunks: int | None = None) -> TrainResult:
     """Trains ``agent`` on ``arena``, validating periodically, and evaluates it on the eval episodes.
 
     Args:
@@ -54,9 +57,14 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
       total_steps: environment steps to train for (default: the agent config's ``total_steps``).
       chunk_updates: updates per compiled chunk (default: about 20 chunks per run).
       validate_every: validate every this many chunks (default: 5; 0 disables).
+      checkpoint_every: with ``run_dir``, checkpoint every this many chunks (default: 5) under
+        ``run_dir/checkpoints``; a run restarted in the same directory resumes from the latest one and
+        continues bit for bit.
       run_dir: if given, writes ``config.json``, ``train.csv``, ``validation.csv``, ``evaluation.json``
         and ``learning_curve.png`` there.
       progress: show a progress bar with steps per second, current return and ETA.
+      stop_after_chunks: stop (without evaluating) after this many chunks in this call, as an
+        interruption would; returns ``evaluation=None``. For tests and time-sliced jobs.
     """
     _check_trainable(agent)
     settings = agent.settings
@@ -78,10 +86,23 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
     train_state = jax.jit(agent.init_training, static_argnums=1)(key, arena)
     chunk = jax.jit(agent.train, static_argnums=(1, 2), donate_argnums=0)
     history, validations = [], []
+    checkpoint_every = 5 if checkpoint_every is None else checkpoint_every
+    checkpointer = Checkpointer(run_path / "checkpoints") if run_path is not None and checkpoint_every else None
+    first_chunk = 0
+    if checkpointer is not None and checkpointer.latest_step() is not None:
+        first_chunk = checkpointer.latest_step()
+        train_state, meta = checkpointer.restore(train_state, first_chunk)
+        history, validations = meta.get("history", []), meta.get("validations", [])
     bar = _progress(num_updates * steps_per_update, progress)
-    start = time.perf_counter()
-    done_updates = 0
-    for index in range(num_chunks):
+    bar.update(first_chunk * chunk_updates * steps_per_update, history[-1]["episode_return"] if history else 0.0)
+    start = time.perf_counter() - (history[-1]["seconds"] if history else 0.0)
+    done_updates = first_chunk * chunk_updates
+    for ran, index in enumerate(range(first_chunk, num_chunks)):
+        if stop_after_chunks is not None and ran >= stop_after_chunks:
+            bar.close()
+            if checkpointer is not None:
+                checkpointer.close()
+            return TrainResult(train_state=train_state, history=history, validations=validations, evaluation=None)
         n = min(chunk_updates, num_updates - done_updates)
         train_state, metrics = chunk(train_state, arena, n)
         metrics = jax.device_get(metrics)
@@ -100,7 +121,11 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
                               agent_state=agent.policy(train_state, arena.spec, True))
             validations.append({"update": done_updates, "env_steps": row["env_steps"], **result.summary()})
             bar.note(f"validation return {validations[-1]['return_mean']:.1f}")
+        if checkpointer is not None and ((index + 1) % checkpoint_every == 0 or index + 1 == num_chunks):
+            checkpointer.save(index + 1, train_state, {"history": history, "validations": validations})
     bar.close()
+    if checkpointer is not None:
+        checkpointer.close()
     evaluation = evaluate(agent, arena, jax.random.key(0), agent_state=agent.policy(train_state, arena.spec, True))
     if run_path is not None:
         _write_csv(run_path / "train.csv", history)

@@ -32,3 +32,9 @@ def test_train_prints_progress_and_table(capsys, tmp_path):
     out = capsys.readouterr().out
     assert "trained 8192 steps" in out and "| return" in out
     assert (tmp_path / "learning_curve.png").is_file()
+    trained = out[out.index("| return"):].split("\n")[0]
+    assert main(["evaluate", "ppo", "classic|domain:cartpole", "--checkpoint", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "restored checkpoint" in out and trained in out  # the run's config and policy, same eval episodes
+    assert main(["evaluate", "ppo", "classic|domain:cartpole", "--checkpoint", str(tmp_path / "nothing")]) == 2
+    assert "no checkpoint found" in capsys.readouterr().err

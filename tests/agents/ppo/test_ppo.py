@@ -8,6 +8,11 @@ import jarena_agents
 from jarena.training import train_and_evaluate
 
 
+def raw_leaves(tree):
+    return [jax.random.key_data(x) if jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key) else x
+            for x in jax.tree_util.tree_leaves(tree)]
+
+
 @pytest.fixture(scope="module")
 def cartpole():
     return jarena.build_arena("classic|domain:cartpole,task:balance")
@@ -66,3 +71,19 @@ def test_ppo_config_errors():
     with pytest.raises(TypeError, match="not trainable"):
         train_and_evaluate(jarena_agents.build_agent("random"), jarena.build_arena("classic|domain:cartpole"),
                            jax.random.key(0))
+
+
+def test_interrupted_and_resumed_run_equals_uninterrupted(cartpole, tmp_path):
+    config = {"num_arenas": 4, "rollout_length": 32, "minibatches": 2, "total_steps": 6 * 4 * 32 * 2}
+    agent = jarena_agents.build_agent("ppo", config)
+    kwargs = dict(chunk_updates=2, validate_every=0, checkpoint_every=1, progress=False)
+    whole = train_and_evaluate(agent, cartpole, jax.random.key(3), run_dir=tmp_path / "whole", **kwargs)
+    partial = train_and_evaluate(agent, cartpole, jax.random.key(3), run_dir=tmp_path / "cut", stop_after_chunks=2,
+                                 **kwargs)
+    assert partial.evaluation is None and len(partial.history) == 2
+    resumed = train_and_evaluate(agent, cartpole, jax.random.key(3), run_dir=tmp_path / "cut", **kwargs)
+    assert len(resumed.history) == len(whole.history) == 6
+    for a, b in zip(raw_leaves(whole.train_state), raw_leaves(resumed.train_state), strict=True):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(whole.evaluation.returns, resumed.evaluation.returns)
+    assert [h["episode_return"] for h in whole.history] == [h["episode_return"] for h in resumed.history]
