@@ -60,8 +60,8 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
       checkpoint_every: with ``run_dir``, checkpoint every this many chunks (default: 5) under
         ``run_dir/checkpoints``; a run restarted in the same directory resumes from the latest one and
         continues bit for bit.
-      run_dir: if given, writes ``config.json``, ``train.csv``, ``validation.csv``, ``evaluation.json``
-        and ``learning_curve.png`` there.
+      run_dir: if given, writes ``config.json``, ``train.csv``, ``validation.csv``, TensorBoard event
+        files (``tensorboard/``), ``evaluation.json`` and ``learning_curve.png`` there.
       progress: show a progress bar with steps per second, current return and ETA.
       stop_after_chunks: stop (without evaluating) after this many chunks in this call, as an
         interruption would; returns ``evaluation=None``. For tests and time-sliced jobs.
@@ -93,6 +93,7 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
         first_chunk = checkpointer.latest_step()
         train_state, meta = checkpointer.restore(train_state, first_chunk)
         history, validations = meta.get("history", []), meta.get("validations", [])
+    writer = _TensorBoard(run_path / "tensorboard") if run_path is not None else None
     bar = _progress(num_updates * steps_per_update, progress)
     bar.update(first_chunk * chunk_updates * steps_per_update, history[-1]["episode_return"] if history else 0.0)
     start = time.perf_counter() - (history[-1]["seconds"] if history else 0.0)
@@ -102,6 +103,8 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
             bar.close()
             if checkpointer is not None:
                 checkpointer.close()
+            if writer is not None:
+                writer.close()
             return TrainResult(train_state=train_state, history=history, validations=validations, evaluation=None)
         n = min(chunk_updates, num_updates - done_updates)
         train_state, metrics = chunk(train_state, arena, n)
@@ -116,16 +119,22 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
         row.update({k: float(np.mean(v)) for k, v in metrics.items() if k not in ("episodes", "episode_return")})
         history.append(row)
         bar.update(n * steps_per_update, row["episode_return"])
+        if writer is not None:
+            writer.log("train", row)
         if validate_every and ((index + 1) % validate_every == 0) and index + 1 < num_chunks:
             result = validate(agent, arena, jax.random.key(index),
                               agent_state=agent.policy(train_state, arena.spec, True))
             validations.append({"update": done_updates, "env_steps": row["env_steps"], **result.summary()})
+            if writer is not None:
+                writer.log("validation", validations[-1])
             bar.note(f"validation return {validations[-1]['return_mean']:.1f}")
         if checkpointer is not None and ((index + 1) % checkpoint_every == 0 or index + 1 == num_chunks):
             checkpointer.save(index + 1, train_state, {"history": history, "validations": validations})
     bar.close()
     if checkpointer is not None:
         checkpointer.close()
+    if writer is not None:
+        writer.close()
     evaluation = evaluate(agent, arena, jax.random.key(0), agent_state=agent.policy(train_state, arena.spec, True))
     if run_path is not None:
         _write_csv(run_path / "train.csv", history)
@@ -166,6 +175,23 @@ def _plot(path: Path, history, validations, evaluation, agent: str, arena: str) 
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+class _TensorBoard:
+    """TensorBoard event files: one scalar per metric, indexed by environment steps."""
+
+    def __init__(self, path: Path):
+        from tensorboardX import SummaryWriter
+
+        self.writer = SummaryWriter(str(path))
+
+    def log(self, group: str, row: dict[str, float]) -> None:
+        for name, value in row.items():
+            if name not in ("env_steps", "update") and np.isfinite(value):
+                self.writer.add_scalar(f"{group}/{name}", value, global_step=int(row["env_steps"]))
+
+    def close(self) -> None:
+        self.writer.close()
 
 
 class _progress:

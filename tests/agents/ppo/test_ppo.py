@@ -27,6 +27,9 @@ def test_ppo_learns_cartpole(cartpole, tmp_path):
     assert result.evaluation.summary()["return_mean"] > 300  # random: ~22
     for name in ["config.json", "train.csv", "evaluation.json", "learning_curve.png"]:
         assert (tmp_path / name).is_file()
+    from tensorboard_reader import scalars
+    logged = scalars(tmp_path / "tensorboard", "train/episode_return")
+    assert logged == pytest.approx(returns)
 
 
 def test_training_is_one_function_of_a_key_and_vmaps_over_seeds(cartpole):
