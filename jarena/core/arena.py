@@ -15,7 +15,7 @@ from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Spec, spec_from_value
 from jarena.core.task import Task
 from jarena.core.tool import ActionTool
-from jarena.core.types import ArenaParams, ArenaState, Final, Info, Outcome, Transition
+from jarena.core.types import ArenaParams, ArenaState, Final, Info, KeyWords, Outcome, Transition
 
 PyTree = Any
 
@@ -131,15 +131,14 @@ class Arena:
             episode = episodes_lib.sample_train_episode(jax.random.fold_in(key, 0))
         else:
             episode = jnp.asarray(episode, jnp.int32)
-        episode_key = episodes_lib.episode_key(episode)
-        key_dynamics, key_task, key_tool = (jax.random.fold_in(episode_key, i) for i in range(3))
+        key_dynamics, key_task, key_tool = (episodes_lib.piece_key(episode, i) for i in range(3))
         # The key that seeds the episodes after this one under auto-reset.
-        rng = jax.random.fold_in(episode_key if key is None else key, 1 if key is not None else 3)
+        rng = episodes_lib.piece_key(episode, 3) if key is None else jax.random.fold_in(key, 1)
         physics = self.dynamics.init(key_dynamics, params.dynamics)
         outcome, task_state = self.task.reset(key_task, physics, Outcome.empty(), params.task)
         tool_state = self.tool.reset(key_tool, params.tool, self.dynamics.control_spec)
         state = ArenaState(physics=physics, task=task_state, tool=tool_state, step=jnp.zeros((), jnp.int32),
-                           episode=episode, rng=rng)
+                           episode=episode, rng=KeyWords.pack(rng))
         return state, self._info(state, outcome, params)
 
     def step(self, state: ArenaState, action: PyTree, params: ArenaParams | None = None

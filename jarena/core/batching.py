@@ -48,7 +48,7 @@ def auto_reset(arena: Arena, state: ArenaState, action: PyTree, params: ArenaPar
     """
     params = arena.default_params() if params is None else params
     next_state, info = arena.step(state, action, params)
-    new_state, new_info = arena.reset(next_state.rng, params)
+    new_state, new_info = arena.reset(next_state.rng.unpack(), params)
     done = info.done
     info = info.replace(observation=tree_where(done, new_info.observation, info.observation),
                         goal=jnp.where(done, new_info.goal, info.goal),

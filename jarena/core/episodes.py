@@ -24,11 +24,6 @@ SPLITS = ("train", "val", "eval")
 _ROOT_SEED = 0x5EED
 
 
-def episode_key(episode: jax.Array) -> jax.Array:
-    """The PRNG key of episode ``episode`` (an int32 scalar); a pure function of the id."""
-    return jax.random.fold_in(jax.random.key(_ROOT_SEED), jnp.asarray(episode, jnp.uint32))
-
-
 def sample_train_episode(key: jax.Array) -> jax.Array:
     """A training episode id drawn uniformly from ``[TRAIN_LOW, TRAIN_HIGH)``, int32 scalar (one 32-bit draw)."""
     bits = jax.random.bits(key, (), jnp.uint32)
@@ -44,3 +39,13 @@ def split_episodes(split: str, num_val: int, num_eval: int) -> range:
     if split == "train":
         return range(TRAIN_LOW, TRAIN_HIGH)
     raise ValueError(f"unknown split {split!r}; valid splits are {list(SPLITS)}")
+
+
+def piece_key(episode: jax.Array, piece: int) -> jax.Array:
+    """Key of one piece of an episode (0 dynamics, 1 task, 2 tool, 3 rng), a pure function of the id.
+
+    ``fold_in(fold_in(root, piece), episode)``: one hash per piece, as the inner ``fold_in`` of
+    constants is folded at compile time.
+    """
+    root = jax.random.fold_in(jax.random.key(_ROOT_SEED), piece)
+    return jax.random.fold_in(root, jnp.asarray(episode, jnp.uint32))

@@ -126,6 +126,29 @@ class Info:
 
 
 @struct.dataclass
+class KeyWords:
+    """A PRNG key kept as separate uint32 words, so that a batch of keys is a few (B,) arrays, not one (B, 2).
+
+    XLA fuses (B,)-shaped state updates into one kernel; a (B, 2) key array gets its own select/concatenate
+    kernel and a copy every step.
+    """
+
+    words: tuple
+    impl: str = struct.field(pytree_node=False, default="threefry2x32")
+
+    @classmethod
+    def pack(cls, key: Array) -> KeyWords:
+        """Packs a typed key, or a raw uint32 key (``jax.random.PRNGKey``) of the default implementation."""
+        if not jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
+            key = jax.random.wrap_key_data(key)
+        data = jax.random.key_data(key)
+        return cls(words=tuple(data[..., i] for i in range(data.shape[-1])), impl=str(jax.random.key_impl(key)))
+
+    def unpack(self) -> Array:
+        return jax.random.wrap_key_data(jnp.stack(self.words, axis=-1), impl=self.impl)
+
+
+@struct.dataclass
 class ArenaState:
     """The full state of one arena; immutable.
 
@@ -135,7 +158,8 @@ class ArenaState:
       tool: the action-tool chain's state (a tuple with one slot per transform).
       step: int32, agent steps taken in this episode.
       episode: int32 episode id.
-      rng: PRNG key that seeds the next episode when the arena auto-resets.
+      rng: :class:`KeyWords`, the PRNG key (``rng.unpack()``) that seeds the next episode when the arena
+        auto-resets.
     """
 
     physics: PyTree
@@ -143,7 +167,7 @@ class ArenaState:
     tool: PyTree
     step: Array
     episode: Array
-    rng: Array
+    rng: KeyWords
 
 
 @struct.dataclass
