@@ -78,3 +78,9 @@ def test_specs(arena):
     assert arena.spec.action == jarena.Discrete(2)
     assert arena.spec.observation["state"].shape == (4,)
     assert arena.max_episode_steps == 500
+
+
+def test_seed_keys_draw_distinct_training_episodes(arena):
+    ids = {int(arena.reset(jax.random.key(seed))[1].episode) for seed in range(64)}
+    assert len(ids) == 64
+    assert min(ids) >= episodes.TRAIN_LOW

@@ -49,3 +49,15 @@ def test_batch_step_with_and_without_reset():
     for _ in range(30):
         states, infos = jarena.batch_step(arena, states, actions)
     assert bool(jnp.all(infos.step < 30))
+
+
+def test_auto_reset_episode_ids_do_not_repeat_or_lock_step():
+    """Episode ids drawn under auto-reset stay distinct across arenas and time (no short cycles)."""
+    arena = jarena.build_arena("classic|domain:cartpole,time_limit:1")  # every step ends an episode
+    states, infos = jarena.batch_reset(arena, jax.random.key(0), 64)
+    step = jax.jit(lambda s: jarena.batch_step(arena, s, jnp.zeros(64, jnp.int32)))
+    seen = set(np.asarray(infos.episode).tolist())
+    for _ in range(50):
+        states, infos = step(states)
+        seen |= set(np.asarray(infos.episode).tolist())
+    assert len(seen) == 64 * 51
