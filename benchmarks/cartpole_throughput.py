@@ -2,7 +2,8 @@
 
 Every variant runs ``--steps`` steps of a batch of B arenas inside one jitted ``lax.scan``; the clock
 (``time.perf_counter`` around the compiled call, after a warm-up call, with ``jax.block_until_ready``)
-never sees compilation, which is timed apart (``lower(...).compile()``). Variants:
+never sees compilation, which is timed apart (``lower(...).compile()``); the timed calls of all variants
+are interleaved, so that a change in the machine's load weighs on every variant alike. Variants:
 
 - ``step``: ours, ``jax.vmap(arena.step)`` with no reset; the batch's actions come from one
   ``jax.random.fold_in(key, t)`` per step.
@@ -136,9 +137,9 @@ def make_loop(variant: str, batch: int):
 # ---------------------------------------------------------------------------------------------- timing
 
 
-def time_variant(variant: str, batch: int, steps: int, repeats: int, unroll: int, seed: int = 0,
-                 dump_hlo: str | None = None) -> dict:
-    """Compiles and times ``steps`` steps of ``batch`` arenas; returns seconds and steps per second.
+def compile_variant(variant: str, batch: int, steps: int, unroll: int, seed: int = 0,
+                    dump_hlo: str | None = None) -> dict:
+    """Resets ``batch`` arenas and compiles ``steps`` steps of the loop; returns the program and its input.
 
     With ``dump_hlo`` (a folder), writes the optimised HLO of the compiled program there.
     """
@@ -160,14 +161,36 @@ def time_variant(variant: str, batch: int, steps: int, repeats: int, unroll: int
         with open(os.path.join(dump_hlo, f"{variant}_B{batch}.hlo.txt"), "w") as f:
             f.write(compiled.as_text())
     jax.block_until_ready(compiled(carry))  # warm-up
-    times = []
+    return {"compiled": compiled, "carry": carry, "compile_s": compile_s}
+
+
+def time_batch(variants: list[str], batch: int, steps: int, repeats: int, unroll: int = 1,
+               dump_hlo: str | None = None) -> list[dict]:
+    """Times every variant at one batch size; returns one row per variant (seconds and steps per second).
+
+    The timed calls are interleaved (each repeat runs every variant once), so that a change in the
+    machine's load during the run weighs on all variants alike and the ratios stay fair.
+    """
+    progs = {v: compile_variant(v, batch, steps, unroll, dump_hlo=dump_hlo) for v in variants}
+    times = {v: [] for v in variants}
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(compiled(carry))
-        times.append(time.perf_counter() - t0)
-    best, median = min(times), statistics.median(times)
-    return {"variant": variant, "batch": batch, "steps": steps, "compile_s": compile_s, "best_s": best,
-            "median_s": median, "steps_per_s": batch * steps / best, "steps_per_s_median": batch * steps / median}
+        for v, p in progs.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(p["compiled"](p["carry"]))
+            times[v].append(time.perf_counter() - t0)
+    rows = []
+    for v in variants:
+        best, median = min(times[v]), statistics.median(times[v])
+        rows.append({"variant": v, "batch": batch, "steps": steps, "compile_s": progs[v]["compile_s"],
+                     "best_s": best, "median_s": median, "steps_per_s": batch * steps / best,
+                     "steps_per_s_median": batch * steps / median})
+    return rows
+
+
+def time_variant(variant: str, batch: int, steps: int, repeats: int, unroll: int = 1,
+                 dump_hlo: str | None = None) -> dict:
+    """Times one variant at one batch size (see :func:`time_batch`)."""
+    return time_batch([variant], batch, steps, repeats, unroll, dump_hlo)[0]
 
 
 def mean_episode_length(variant: str, batch: int = 4096, steps: int = 300, seed: int = 1) -> float:
@@ -288,7 +311,8 @@ def parse_args(argv=None):
     p.add_argument("--batch-sizes", type=parse_batches, default=None,
                    help="comma-separated batch sizes; 'B^i..B^j' expands to powers (e.g. 4^0..4^10)")
     p.add_argument("--steps", type=int, default=None, help="steps per timed call (one lax.scan)")
-    p.add_argument("--repeats", type=int, default=5, help="timed calls per variant after one warm-up; best shown")
+    p.add_argument("--repeats", type=int, default=5,
+                   help="timed calls per variant after one warm-up, interleaved across variants; best shown")
     p.add_argument("--unroll", type=int, default=1, help="lax.scan unroll, the same for every variant")
     p.add_argument("--variants", default=",".join(DEFAULT_VARIANTS),
                    help=f"comma-separated subset of {','.join(ALL_VARIANTS)}")
@@ -337,8 +361,8 @@ def main(argv=None) -> int:
             print("mean episode length: " + ", ".join(f"{v} {x:.1f}" for v, x in lengths.items()), flush=True)
     rows = []
     for b in args.batch_sizes:
-        for v in args.variant_list:
-            r = time_variant(v, b, args.steps, args.repeats, args.unroll, dump_hlo=args.dump_hlo)
+        for r in time_batch(args.variant_list, b, args.steps, args.repeats, args.unroll, dump_hlo=args.dump_hlo):
+            v = r["variant"]
             rows.append(r)
             print(f"B={b:>8} {v:>11}: {r['steps_per_s']:.3e} steps/s (median {r['steps_per_s_median']:.3e}), "
                   f"{r['best_s'] * 1e3:.2f} ms/call, compile {r['compile_s']:.2f} s", flush=True)
