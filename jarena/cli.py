@@ -165,6 +165,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from jarena.platform import avoid_cpu_eigen_deadlock
+
+    avoid_cpu_eigen_deadlock()
     args = build_parser().parse_args(argv)
     try:
         return args.fn(args)

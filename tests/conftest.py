@@ -2,7 +2,11 @@
 
 import os
 
-import jax
+from jarena.platform import avoid_cpu_eigen_deadlock
+
+avoid_cpu_eigen_deadlock(force=True)  # before JAX starts its CPU backend
+
+import jax  # noqa: E402
 
 jax.config.update("jax_compilation_cache_dir",
                   os.environ.get("JARENA_JAX_CACHE", os.path.expanduser("~/.cache/jarena/jax")))

@@ -128,12 +128,12 @@ class Arena:
         if episode is None:
             if key is None:
                 raise ValueError("reset() needs a key, an episode id, or both")
-            episode = episodes_lib.sample_train_episode(key)
+            episode = episodes_lib.sample_train_episode(jax.random.fold_in(key, 0))
         else:
             episode = jnp.asarray(episode, jnp.int32)
         key_dynamics, key_task, key_tool = (episodes_lib.piece_key(episode, i) for i in range(3))
         # The key that seeds the episodes after this one under auto-reset.
-        rng = episodes_lib.piece_key(episode, 3) if key is None else episodes_lib.next_key(key)
+        rng = episodes_lib.piece_key(episode, 3) if key is None else jax.random.fold_in(key, 1)
         physics = self.dynamics.init(key_dynamics, params.dynamics)
         outcome, task_state = self.task.reset(key_task, physics, Outcome.empty(), params.task)
         tool_state = self.tool.reset(key_tool, params.tool, self.dynamics.control_spec)

@@ -24,44 +24,10 @@ SPLITS = ("train", "val", "eval")
 _ROOT_SEED = 0x5EED
 
 
-def _fmix32(h: jax.Array) -> jax.Array:
-    """MurmurHash3's 32-bit finaliser: a cheap bijective mix of a uint32."""
-    h = h ^ (h >> 16)
-    h = h * jnp.uint32(0x85EBCA6B)
-    h = h ^ (h >> 13)
-    h = h * jnp.uint32(0xC2B2AE35)
-    return h ^ (h >> 16)
-
-
 def sample_train_episode(key: jax.Array) -> jax.Array:
-    """A training episode id, uniform in ``[TRAIN_LOW, TRAIN_HIGH)``, int32 scalar.
-
-    Mixes the key's words with a cheap integer finaliser instead of a threefry hash (resets run every
-    step under auto-reset): the episode's randomness itself still comes from threefry of its id.
-    """
-    if not jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
-        key = jax.random.wrap_key_data(key)
-    words = jax.random.key_data(key).astype(jnp.uint32)
-    h = jnp.full(words.shape[:-1], 0x27D4EB2F, jnp.uint32)  # a seed apart from next_key's
-    for i in range(words.shape[-1]):
-        h = _fmix32(h ^ words[..., i])
-    return ((h >> 2) | jnp.uint32(TRAIN_LOW)).astype(jnp.int32)
-
-
-def next_key(key: jax.Array) -> jax.Array:
-    """The key that seeds the episode after the one started from ``key`` (cheap: no threefry hash).
-
-    A bijective integer mix of the key's words. It only chooses future training episode ids (see
-    :func:`sample_train_episode`); each episode's own randomness is threefry of its id.
-    """
-    if not jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
-        key = jax.random.wrap_key_data(key)
-    words = jax.random.key_data(key).astype(jnp.uint32)
-    mixed, carry = [], jnp.uint32(0x9E3779B9)
-    for i in range(words.shape[-1]):
-        carry = _fmix32(words[..., i] ^ carry)
-        mixed.append(carry)
-    return jax.random.wrap_key_data(jnp.stack(mixed, axis=-1), impl=jax.random.key_impl(key))
+    """A training episode id drawn uniformly from ``[TRAIN_LOW, TRAIN_HIGH)``, int32 scalar (one 32-bit draw)."""
+    bits = jax.random.bits(key, (), jnp.uint32)
+    return ((bits >> 2) | jnp.uint32(TRAIN_LOW)).astype(jnp.int32)
 
 
 def split_episodes(split: str, num_val: int, num_eval: int) -> range:
