@@ -1,0 +1,17 @@
+"""Data: an on-device functional buffer, and zarr-backed trajectory datasets.
+
+    buffer = jarena.data.make_buffer(num_arenas=64, capacity=65536, sample_batch_size=256, mode="window", length=8)
+    state = buffer.init(jarena.data.experience_spec(arena))
+"""
+
+from jarena.data.buffer import Buffer, BufferError, BufferState, make_buffer
+from jarena.data.experience import Experience, experience_spec, transition_from
+from jarena.data.sampling import (
+    BufferSample,
+    sample_trajectories,
+    sample_transitions,
+    sample_windows,
+)
+
+__all__ = ["Buffer", "BufferError", "BufferSample", "BufferState", "Experience", "experience_spec", "make_buffer",
+           "sample_trajectories", "sample_transitions", "sample_windows", "transition_from"]
