@@ -5,13 +5,18 @@
 """
 
 from jarena.data.buffer import Buffer, BufferError, BufferState, make_buffer
+from jarena.data.dataset import TrajectoryDataset
 from jarena.data.experience import Experience, experience_spec, transition_from
+from jarena.data.loader import Loader
 from jarena.data.sampling import (
     BufferSample,
     sample_trajectories,
     sample_transitions,
     sample_windows,
 )
+from jarena.data.schema import DatasetError, Field, Schema
+from jarena.data.splits import split_trajectories
 
-__all__ = ["Buffer", "BufferError", "BufferSample", "BufferState", "Experience", "experience_spec", "make_buffer",
-           "sample_trajectories", "sample_transitions", "sample_windows", "transition_from"]
+__all__ = ["Buffer", "BufferError", "BufferSample", "BufferState", "DatasetError", "Experience", "Field", "Loader",
+           "Schema", "TrajectoryDataset", "experience_spec", "make_buffer", "sample_trajectories",
+           "sample_transitions", "sample_windows", "split_trajectories", "transition_from"]
