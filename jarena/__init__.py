@@ -30,7 +30,7 @@ from jarena.core.spec import Box, Discrete, SpecError
 from jarena.core.task import Task
 from jarena.core.tool import ActionTool
 from jarena.core.types import ArenaParams, ArenaState, Final, Info, Outcome, Transition
-from jarena.data import TrajectoryDataset, make_buffer
+from jarena.data import TrajectoryDataset, collect, make_buffer
 from jarena.runners import EvalResult, Trajectory, evaluate, perform_parallel, run, validate
 
 __version__ = "0.1.0"
@@ -39,7 +39,7 @@ __all__ = [
     "ActionTool", "Agent", "Arena", "ArenaParams", "ArenaSpec", "ArenaState", "ArenaStringError", "Box",
     "Discrete", "Dynamics", "EvalResult", "Final", "Info", "Outcome", "Sensor", "SpecError", "Task",
     "Trajectory", "TrajectoryDataset", "Transition", "auto_reset", "batch_reset", "batch_step", "build_arena",
-    "chain", "data", "evaluate", "list_arenas", "make_buffer", "parse_arena_string", "perform_parallel",
+    "chain", "collect", "data", "evaluate", "list_arenas", "make_buffer", "parse_arena_string", "perform_parallel",
     "register_arena_builder", "register_task", "register_tool", "retrieve_config", "run", "spec", "tasks",
     "testing", "tools", "validate",
 ]

@@ -5,6 +5,7 @@
 """
 
 from jarena.data.buffer import Buffer, BufferError, BufferState, make_buffer
+from jarena.data.collect import collect, configs_for, resize_images
 from jarena.data.dataset import TrajectoryDataset
 from jarena.data.experience import Experience, experience_spec, transition_from
 from jarena.data.loader import Loader
@@ -18,5 +19,6 @@ from jarena.data.schema import DatasetError, Field, Schema
 from jarena.data.splits import split_trajectories
 
 __all__ = ["Buffer", "BufferError", "BufferSample", "BufferState", "DatasetError", "Experience", "Field", "Loader",
-           "Schema", "TrajectoryDataset", "experience_spec", "make_buffer", "sample_trajectories",
-           "sample_transitions", "sample_windows", "split_trajectories", "transition_from"]
+           "Schema", "TrajectoryDataset", "collect", "configs_for", "experience_spec", "make_buffer",
+           "resize_images", "sample_trajectories", "sample_transitions", "sample_windows", "split_trajectories",
+           "transition_from"]
