@@ -15,7 +15,7 @@ Layout: one ring per arena, stored time-major like rollouts: every leaf has shap
 contiguous block (``lax.dynamic_update_slice``, in place when the state is donated), and a rollout's
 ``(T, B, ...)`` arrays add in one call. Besides the items the state keeps, per slot, how far it is into
 a contiguous stretch of one episode (``run``, from the items' episode ids and step indices), whether
-the episode ended there, and whether it starts a complete stored episode; so window and trajectory
+the episode ended there, and whether it ends an episode added from its first step; so window and trajectory
 sampling (:mod:`jarena.data.sampling`) never cross an episode boundary unless asked to.
 """
 
@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jarena.data import sampling
+from jarena.data import marks, sampling
 from jarena.data.sampling import BufferSample
 
 Array = jax.Array
@@ -50,28 +50,43 @@ class BufferState:
 
     Attributes:
       experience: the items, leaves of shape (C, B, *item_shape).
-      run: int32 (C, B); 1 + the number of items of the same episode stored contiguously before this
-        slot (1 where an episode's stored stretch starts).
-      done: bool (C, B); the episode ended with this item.
-      complete: bool (C, B); this slot starts a complete stored episode (step 0 through its end).
-      last_episode, last_step: int32 (B,), episode id and step of each arena's newest item.
+      meta: int32 (C, B), per slot ``run << 2 | done << 1 | ends`` (:mod:`jarena.data.marks`); read it through
+        the properties below.
+      last_episode, last_step, last_run: int32 (B,), episode id, step and run of each arena's newest item
+        (kept apart so that ``add`` never reads the big arrays it writes, which would make XLA copy them).
       position: int32 scalar, the next slot to write (the same for every arena).
       count: int32 scalar, items stored per arena (at most C).
     """
 
     experience: PyTree
-    run: Array
-    done: Array
-    complete: Array
+    meta: Array
     last_episode: Array
     last_step: Array
+    last_run: Array
     position: Array
     count: Array
 
     @property
+    def run(self) -> Array:
+        """int32 (C, B); 1 + the number of items of the same episode stored contiguously before each slot
+        (1 where an episode's stored stretch starts; it counts items since overwritten, too)."""
+        return marks.run(self.meta)
+
+    @property
+    def done(self) -> Array:
+        """bool (C, B); the episode ended with this item."""
+        return marks.done(self.meta)
+
+    @property
+    def ends(self) -> Array:
+        """bool (C, B); this item ends an episode added from its step 0 on, contiguously (the episode is
+        stored whole while its first item is, i.e. while ``run`` <= the slot's age + 1)."""
+        return marks.ends(self.meta)
+
+    @property
     def size(self) -> Array:
         """Items stored, over all arenas."""
-        return self.count * self.run.shape[1]
+        return self.count * self.meta.shape[1]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -135,9 +150,10 @@ def init(item: PyTree, *, num_arenas: int, capacity_per_arena: int, episode_of=_
                               f"{value.shape} and dtype {value.dtype}")
     c, b = capacity_per_arena, num_arenas
     experience = jax.tree_util.tree_map(lambda x: jnp.zeros((c, b) + tuple(x.shape), x.dtype), item)
-    return BufferState(experience=experience, run=jnp.zeros((c, b), jnp.int32), done=jnp.zeros((c, b), bool),
-                       complete=jnp.zeros((c, b), bool), last_episode=jnp.full((b,), -1, jnp.int32),
-                       last_step=jnp.full((b,), -1, jnp.int32), position=jnp.zeros((), jnp.int32),
+    # Distinct arrays for every field: a donated state must not hold one buffer twice.
+    return BufferState(experience=experience, meta=jnp.zeros((c, b), jnp.int32),
+                       last_episode=jnp.full((b,), -1, jnp.int32), last_step=jnp.full((b,), -1, jnp.int32),
+                       last_run=jnp.zeros((b,), jnp.int32), position=jnp.zeros((), jnp.int32),
                        count=jnp.zeros((), jnp.int32))
 
 
@@ -148,7 +164,7 @@ def _steps_in(state: BufferState, batch: PyTree) -> int | None:
     if want_def != got_def:
         raise BufferError(f"add: the batch's structure differs from the buffer's items.\n  buffer: {want_def}\n"
                           f"  batch:  {got_def}")
-    c, b = state.run.shape
+    c, b = state.meta.shape
     steps = set()
     for (path, stored), got in zip(jax.tree_util.tree_leaves_with_path(state.experience),
                                    jax.tree_util.tree_leaves(batch), strict=True):
@@ -178,7 +194,7 @@ def add(state: BufferState, batch: PyTree, *, episode_of=_episode_of, step_of=_s
     if t is None:
         batch = jax.tree_util.tree_map(lambda x: jnp.expand_dims(x, 0), batch)
         t = 1
-    c, b = state.run.shape
+    c, b = state.meta.shape
     episode = jnp.asarray(episode_of(batch)).astype(jnp.int32)
     step = jnp.asarray(step_of(batch)).astype(jnp.int32)
     done = jnp.asarray(done_of(batch)).astype(bool)
@@ -186,15 +202,19 @@ def add(state: BufferState, batch: PyTree, *, episode_of=_episode_of, step_of=_s
         if x.shape != (t, b):
             raise BufferError(f"add: the batch's {what} have shape {x.shape}, expected {(t, b)}")
 
-    # Where each new item continues the stretch of its arena's previous item.
-    prev_episode = jnp.concatenate([state.last_episode[None], episode[:-1]])
-    prev_step = jnp.concatenate([state.last_step[None], step[:-1]])
-    continues = (episode == prev_episode) & (step == prev_step + 1)
-    continues = continues.at[0].set(continues[0] & (state.count > 0))
-    index = jnp.arange(t, dtype=jnp.int32)[:, None]
-    last_break = jax.lax.cummax(jnp.where(continues, -1, index), axis=0)
-    prev_run = state.run[(state.position - 1) % c]
-    run = jnp.where(last_break >= 0, index - last_break + 1, prev_run[None] + index + 1)
+    # Where each new item continues the stretch of its arena's previous item, and how far into it it is.
+    prev_run = state.last_run
+    if t == 1:
+        continues = (episode[0] == state.last_episode) & (step[0] == state.last_step + 1) & (state.count > 0)
+        run = jnp.where(continues, prev_run + 1, 1)[None]
+    else:
+        prev_episode = jnp.concatenate([state.last_episode[None], episode[:-1]])
+        prev_step = jnp.concatenate([state.last_step[None], step[:-1]])
+        continues = (episode == prev_episode) & (step == prev_step + 1)
+        continues = continues.at[0].set(continues[0] & (state.count > 0))
+        index = jnp.arange(t, dtype=jnp.int32)[:, None]
+        last_break = jax.lax.cummax(jnp.where(continues, -1, index), axis=0)
+        run = jnp.where(last_break >= 0, index - last_break + 1, prev_run[None] + index + 1)
 
     def write(stored, new):
         if t == 1:
@@ -202,19 +222,10 @@ def add(state: BufferState, batch: PyTree, *, episode_of=_episode_of, step_of=_s
         slots = (state.position + jnp.arange(t)) % c
         return stored.at[slots].set(new, unique_indices=True)
 
-    experience = jax.tree_util.tree_map(write, state.experience, batch)
-    count = jnp.minimum(state.count + t, c)
-    position = (state.position + t) % c
-    complete = write(state.complete, jnp.zeros((t, b), bool))
-    # An episode that ends here is complete if its first step (step 0) is still stored.
-    oldest = (position - count) % c
-    start_logical = count - t + index - (run - 1)
-    is_complete = done & (start_logical >= 0) & (step - run + 1 == 0)
-    start_slot = (oldest + start_logical) % c
-    complete = complete.at[start_slot, jnp.broadcast_to(jnp.arange(b), (t, b))].max(is_complete)
-    return state.replace(experience=experience, run=write(state.run, run), done=write(state.done, done),
-                         complete=complete, last_episode=episode[-1], last_step=step[-1], position=position,
-                         count=count)
+    meta = marks.pack(run, done, done & (step + 1 == run))
+    return state.replace(experience=jax.tree_util.tree_map(write, state.experience, batch),
+                         meta=write(state.meta, meta), last_episode=episode[-1], last_step=step[-1], last_run=run[-1],
+                         position=(state.position + t) % c, count=jnp.minimum(state.count + t, c))
 
 
 # ---------------------------------------------------------------------------------------------- factory

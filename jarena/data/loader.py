@@ -81,18 +81,25 @@ class _ChunkCache:
     """Whole zarr chunks read on demand, kept in LRU order within ``budget`` bytes; thread-safe."""
 
     def __init__(self, budget: int, workers: int = 8):
-        self.budget, self.used = max(int(budget), 0), 0
+        self.budget, self.used, self.workers = max(int(budget), 0), 0, workers
         self.chunks: collections.OrderedDict = collections.OrderedDict()
         self.lock = threading.Lock()
-        self.pool = concurrent.futures.ThreadPoolExecutor(workers)
+
+    def _read(self, array, size: int, ids: list[int]) -> list[np.ndarray]:
+        def read(c):
+            return np.asarray(array[c * size:(c + 1) * size])
+
+        if len(ids) < 2:
+            return [read(c) for c in ids]
+        with concurrent.futures.ThreadPoolExecutor(min(self.workers, len(ids))) as pool:
+            return list(pool.map(read, ids))
 
     def rows(self, array, rows: np.ndarray) -> np.ndarray:
         size = array.chunks[0]
         ids, inverse = np.unique(rows // size, return_inverse=True)
         with self.lock:
             missing = [int(c) for c in ids if (id(array), int(c)) not in self.chunks]
-        loaded = dict(zip(missing, self.pool.map(lambda c: np.asarray(array[c * size:(c + 1) * size]), missing),
-                          strict=True))
+        loaded = dict(zip(missing, self._read(array, size, missing), strict=True))
         out = np.empty((rows.shape[0],) + array.shape[1:], array.dtype)
         with self.lock:
             for k, c in enumerate(ids):

@@ -19,6 +19,8 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jarena.data import marks
+
 if TYPE_CHECKING:
     from jarena.data.buffer import BufferState
 
@@ -31,8 +33,9 @@ class BufferSample:
     """A batch drawn from a buffer (shapes (S,) for transitions, (S, L) for windows and trajectories).
 
     Attributes:
-      experience: the items, leaves (S, ...) or (S, L, ...); zeros where ``mask`` is false.
-      mask: bool; the item is real (false only in the padding of trajectories).
+      experience: the items, leaves (S, ...) or (S, L, ...); zeros in the padding of trajectories.
+      mask: bool; the item is real: false in the padding of trajectories, and everywhere when the buffer
+        has nothing to sample (``can_sample`` false), where the items are arbitrary.
       first: bool; the item is the first stored one of its episode (its episode's start, or the oldest
         item left of it).
       done: bool; the episode ended with this item (its terminal flag).
@@ -45,7 +48,7 @@ class BufferSample:
 
 
 def _sizes(state: BufferState) -> tuple[int, int]:
-    return state.run.shape
+    return state.meta.shape
 
 
 def _oldest(state: BufferState) -> Array:
@@ -58,16 +61,19 @@ def _logical(state: BufferState, slot: Array) -> Array:
     return (slot - _oldest(state)) % c
 
 
-def _gather(state: BufferState, slot: Array, arena: Array, mask: Array) -> BufferSample:
-    """Gathers items at ``(slot, arena)`` (arrays of one shape); zeros where ``mask`` is false."""
-    run = jnp.minimum(state.run[slot, arena], _logical(state, slot) + 1)
+def _gather(state: BufferState, slot: Array, arena: Array, mask: Array, pad: bool = False) -> BufferSample:
+    """Gathers items at ``(slot, arena)`` (arrays of one shape); with ``pad``, zeros where ``mask`` is false."""
+    meta = state.meta[slot, arena]
+    run = jnp.minimum(marks.run(meta), _logical(state, slot) + 1)
 
     def take(x):
         value = x[slot, arena]
+        if not pad:
+            return value
         return jnp.where(mask.reshape(mask.shape + (1,) * (value.ndim - mask.ndim)), value, jnp.zeros((), x.dtype))
 
     return BufferSample(experience=jax.tree_util.tree_map(take, state.experience), mask=mask,
-                        first=(run == 1) & mask, done=state.done[slot, arena] & mask)
+                        first=(run == 1) & mask, done=marks.done(meta) & mask)
 
 
 def _choose(key: Array, valid: Array, num: int) -> tuple[Array, Array]:
@@ -126,7 +132,7 @@ def sample_windows(state: BufferState, key: Array, batch_size: int, length: int,
 
     if not across:
         def ends_ok(start, arena):
-            return state.run[(_oldest(state) + start + length - 1) % c, arena] >= length
+            return marks.run(state.meta[(_oldest(state) + start + length - 1) % c, arena]) >= length
 
         def redraw(carry):
             start, arena, ok, i = carry
@@ -161,13 +167,17 @@ def can_sample_windows(state: BufferState, length: int, across: bool = False) ->
 
 
 # ---------------------------------------------------------------------------------------------- trajectories
-def trajectory_starts(state: BufferState, complete_only: bool = True) -> Array:
-    """bool (C, B): slots where a stored episode starts (complete ones only, by default)."""
+def trajectory_anchors(state: BufferState, complete_only: bool = True) -> Array:
+    """bool (C, B): one slot per stored episode that can be drawn whole (complete ones only, by default).
+
+    A complete episode is anchored at its last item (it ends the episode, and the episode's step 0 is
+    still stored); otherwise every stored stretch of an episode is anchored at its first stored item.
+    """
     c, _ = _sizes(state)
     logical = _logical(state, jnp.arange(c))[:, None]
     stored = logical < state.count
     if complete_only:
-        return stored & state.complete
+        return stored & state.ends & (state.run <= logical + 1)
     return stored & (jnp.minimum(state.run, logical + 1) == 1)
 
 
@@ -179,15 +189,16 @@ def sample_trajectories(state: BufferState, key: Array, batch_size: int, max_len
     ``max_length`` items. ``complete_only`` draws only episodes stored from step 0 to their end.
     """
     c, b = _sizes(state)
-    index, any_valid = _choose(key, trajectory_starts(state, complete_only), batch_size)
-    start_slot, arena = index // b, index % b
+    index, any_valid = _choose(key, trajectory_anchors(state, complete_only), batch_size)
+    anchor, arena = index // b, index % b
+    start_slot = (anchor - marks.run(state.meta[anchor, arena]) + 1) % c if complete_only else anchor
     offset = jnp.arange(max_length)
     slot = (start_slot[:, None] + offset) % c
-    start_run = state.run[start_slot, arena][:, None]
-    mask = ((state.run[slot, arena[:, None]] == start_run + offset)
+    start_run = marks.run(state.meta[start_slot, arena])[:, None]
+    mask = ((marks.run(state.meta[slot, arena[:, None]]) == start_run + offset)
             & (_logical(state, start_slot)[:, None] + offset < state.count) & any_valid)
-    return _gather(state, slot, arena[:, None], mask)
+    return _gather(state, slot, arena[:, None], mask, pad=True)
 
 
 def can_sample_trajectories(state: BufferState, complete_only: bool = True) -> Array:
-    return jnp.any(trajectory_starts(state, complete_only))
+    return jnp.any(trajectory_anchors(state, complete_only))
