@@ -112,3 +112,14 @@ def test_custom_accessors():
     state = jax.jit(buffer.add)(buffer.init(jax.tree_util.tree_map(lambda x: x[0, 0], items)), items)
     sample = jax.jit(buffer.sample)(state, jax.random.key(0))
     assert bool(sample.mask.all()) and sample.experience["t"].tolist() == [[0, 1, 2, 3]] * 3
+
+
+@pytest.mark.parametrize("steps", [None, 3])
+def test_compiled_add_never_copies_a_whole_array(steps):
+    stream = episode_stream(8, 4)
+    buffer = make_buffer(8, 8 * 96, 8)
+    state = buffer.init(item(stream))
+    batch = {k: v[0] if steps is None else v[:steps] for k, v in stream.items()}
+    hlo = jax.jit(buffer.add, donate_argnums=0).lower(state, batch).compile().as_text()
+    copies = [line for line in hlo.splitlines() if " copy(" in line and "[96,8" in line]
+    assert not copies, copies
