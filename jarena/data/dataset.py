@@ -8,13 +8,16 @@ Layout of the store (a zarr group in the directory ``path``)::
     step/reward, step/terminated, step/truncated      (sum of T_i,) float32, bool, bool
     trajectory/length, trajectory/episode             (num_trajectories,) int64
 
-The group's attributes hold the schema (``jarena_dataset``: field configs as JSON) and the commit record
-(``jarena_commit``: how many trajectories and steps are visible). Arrays grow geometrically and may
-hold rows past the commit; those are invisible. A write puts all of a trajectory's rows first, then
-replaces the commit record; zarr (>= 3.1.3) writes every file through a temporary file and
-``os.replace``, so a killed writer leaves each file old or new, never torn. Rows of committed
-trajectories are rewritten only with their own values (when a partly filled chunk grows), so killing
-the writer loses at most the trajectories being written, and ``mode="a"`` resumes after them.
+    commit                                            (2,) int64: num_trajectories, num_steps
+
+The group's attributes hold the schema (``jarena_dataset``: field configs as JSON); ``commit`` says how
+many trajectories and steps are visible. Arrays grow geometrically and may hold rows past the commit;
+those are invisible. A write puts all of a trajectory's rows first, then replaces the commit. Every
+chunk file is written to a temporary file and moved into place with ``os.replace`` (by
+:mod:`jarena.data.chunks` for raw arrays, by zarr >= 3.1.3 for compressed ones), so a killed writer
+leaves each file old or new, never torn. Rows of committed trajectories are rewritten only with their
+own values (when a partly filled chunk grows), so killing the writer loses at most the trajectories
+being written, and ``mode="a"`` resumes after them. Chunk files sit side by side (``c.7.0.0``).
 """
 
 from __future__ import annotations
@@ -30,11 +33,13 @@ import numpy as np
 import zarr
 from zarr import codecs
 
+from jarena.data.chunks import PARTIAL_SUFFIX, write_rows
 from jarena.data.schema import GROUPS, DatasetError, Field, Schema
 
 FORMAT = 1
+MAX_CHUNK_ROWS = 8192
 MODES = ("r", "a", "w")
-SCHEMA_ATTR, COMMIT_ATTR = "jarena_dataset", "jarena_commit"
+SCHEMA_ATTR, COMMIT = "jarena_dataset", "commit"
 STEP_FIELDS = {"reward": Field((), "float32"), "terminated": Field((), "bool"), "truncated": Field((), "bool")}
 TRAJECTORY_FIELDS = {"length": Field((), "int64"), "episode": Field((), "int64")}
 _ARGUMENT = {"observation": "observations", "action": "actions", "goal": "goal"}
@@ -122,11 +127,16 @@ class TrajectoryDataset:
         tmp = os.path.join(parent, f".{os.path.basename(os.path.abspath(self.path))}.{uuid.uuid4().hex}.tmp")
         root = zarr.open_group(tmp, mode="w")
         for name, field in _fields(schema).items():
-            rows = max(1, int(chunk_bytes) // max(field.itemsize, 1))
+            # Small items get fewer rows per chunk: growing a partly filled chunk rewrites it.
+            rows = max(1, min(int(chunk_bytes) // max(field.itemsize, 1), MAX_CHUNK_ROWS))
+            # Chunk files side by side ("c.7.0.0") rather than in a directory each ("c/7/0/0"): no mkdir per chunk.
             root.create_array(name, shape=(0,) + field.shape, chunks=(rows,) + field.shape, dtype=field.dtype,
-                              compressors=_compressors(field), fill_value=0)
-        root.attrs.update({SCHEMA_ATTR: {"format": FORMAT, "schema": schema.to_json()},
-                           COMMIT_ATTR: {"num_trajectories": 0, "num_steps": 0}})
+                              compressors=_compressors(field), fill_value=0,
+                              chunk_key_encoding={"name": "default", "separator": "."})
+        commit = root.create_array(COMMIT, shape=(2,), chunks=(2,), dtype="int64", compressors=None, fill_value=0,
+                                   chunk_key_encoding={"name": "default", "separator": "."})
+        write_rows(commit, 0, np.zeros(2, np.int64))
+        root.attrs.update({SCHEMA_ATTR: {"format": FORMAT, "schema": schema.to_json()}})
         old = None
         if os.path.exists(self.path):
             old = f"{tmp}.old"
@@ -173,12 +183,17 @@ class TrajectoryDataset:
             if not isinstance(array, zarr.Array) or array.shape[1:] != field.shape or array.dtype != field.dtype:
                 raise DatasetError(f"corrupt dataset at {self.path!r}: array {name!r} does not match its field "
                                    f"{field.to_json()}")
-            arrays[name] = array
+            # Chunks are written even when all zeros: it saves zarr a pass over every chunk it writes.
+            arrays[name] = array if self.mode == "r" else array.with_config({"write_empty_chunks": True})
         try:
-            commit = meta[COMMIT_ATTR]
-            n, steps = int(commit["num_trajectories"]), int(commit["num_steps"])
-        except (KeyError, TypeError, ValueError) as e:
+            commit = root[COMMIT]
+            if not isinstance(commit, zarr.Array) or commit.shape != (2,) or commit.dtype != np.int64:
+                raise ValueError(f"expected 2 int64 values, got {commit}")
+            n, steps = (int(v) for v in commit[:])
+        except Exception as e:
             raise DatasetError(f"corrupt dataset at {self.path!r}: bad commit record ({e})") from e
+        if n < 0 or steps < 0:
+            raise DatasetError(f"corrupt dataset at {self.path!r}: bad commit record ({n} trajectories, {steps} steps)")
         rows = {"observation": steps + n, "step": steps, "trajectory": n}
         for name, array in arrays.items():
             need = rows[ROWS_PER[name.split("/")[0]]]
@@ -189,7 +204,7 @@ class TrajectoryDataset:
         if n and (lengths.min() < 1 or int(lengths.sum()) != steps):
             raise DatasetError(f"corrupt dataset at {self.path!r}: trajectory lengths sum to {int(lengths.sum())}, "
                                f"the commit record says {steps} steps")
-        self._root, self._arrays = root, arrays
+        self._root, self._arrays, self._commit = root, arrays, commit
         self._set_committed(lengths, np.asarray(arrays["trajectory/episode"][:n], np.int64))
 
     def _set_committed(self, lengths: np.ndarray, episodes: np.ndarray) -> None:
@@ -313,9 +328,9 @@ class TrajectoryDataset:
             a = start[kind]
             if array.shape[0] < a + data.shape[0]:
                 array.resize((max(a + data.shape[0], 2 * array.shape[0]),) + array.shape[1:])
-            array[a:a + data.shape[0]] = data
-        commit = {"num_trajectories": n + len(checked), "num_steps": steps + new_steps}
-        self._root.attrs[COMMIT_ATTR] = commit  # the commit point: one file, replaced atomically
+            write_rows(array, a, data)
+        # The commit point: one small file, replaced atomically.
+        write_rows(self._commit, 0, np.asarray([n + len(checked), steps + new_steps], np.int64))
         self._set_committed(np.concatenate([self._lengths] + [c["trajectory/length"] for c in checked]),
                             np.concatenate([self._episodes] + [c["trajectory/episode"] for c in checked]))
         return list(range(n, n + len(checked)))
@@ -421,10 +436,10 @@ def _stack(values: list, what: str) -> np.ndarray:
 
 
 def _remove_partial_files(path: str) -> None:
-    """Deletes temporary files that a killed writer left behind (zarr writes ``*.partial`` then renames)."""
+    """Deletes temporary files that a killed writer left behind (chunks go to ``*.partial``, then are renamed)."""
     for directory, _, files in os.walk(path):
         for name in files:
-            if name.endswith(".partial"):
+            if name.endswith(PARTIAL_SUFFIX):
                 with contextlib.suppress(OSError):
                     os.remove(os.path.join(directory, name))
 

@@ -145,21 +145,28 @@ def test_bad_opens_name_the_problem_and_leave_the_store(store, tmp_path):
 
 
 def test_corrupt_stores_get_clear_errors(store):
-    meta_path = store / "zarr.json"
-    meta = json.loads(meta_path.read_text())
-    meta["attributes"]["jarena_commit"]["num_steps"] += 1
-    meta_path.write_text(json.dumps(meta))
+    import zarr
+
+    commit = zarr.open_array(store / "commit", mode="r+")
+    commit[1] += 1
     with pytest.raises(DatasetError, match="corrupt dataset.*lengths sum to"):
         TrajectoryDataset(store)
-    meta["attributes"]["jarena_commit"] = {"num_trajectories": 10 ** 6, "num_steps": 0}
-    meta_path.write_text(json.dumps(meta))
+    commit[:] = [10 ** 6, 0]
     with pytest.raises(DatasetError, match="corrupt dataset.*rows, the commit record needs"):
         TrajectoryDataset(store)
-    del meta["attributes"]["jarena_commit"]
-    meta_path.write_text(json.dumps(meta))
+    for chunk in os.listdir(store / "commit"):
+        if chunk.startswith("c"):
+            (store / "commit" / chunk).write_bytes(b"torn")
     with pytest.raises(DatasetError, match="bad commit record"):
         TrajectoryDataset(store)
-    meta_path.write_text("{not json")
+    os.remove(store / "observation" / "rgb" / "zarr.json")
+    with pytest.raises(DatasetError, match="missing array 'observation/rgb'"):
+        TrajectoryDataset(store)
+    meta = store / "zarr.json"
+    meta.write_text(json.dumps({**json.loads(meta.read_text()), "attributes": {}}))
+    with pytest.raises(DatasetError, match="not a jarena dataset"):
+        TrajectoryDataset(store)
+    meta.write_text("{not json")
     with pytest.raises(DatasetError, match="not a readable zarr store"):
         TrajectoryDataset(store)
 

@@ -14,25 +14,27 @@ from jarena.data import TrajectoryDataset
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-# Appends trajectory(k), k = start, start + 1, ... forever, printing each commit. With pause_at >= 0 it
-# stops (sleeps) in the middle of writing trajectory `pause_at`, after some of its arrays are written.
+# Appends trajectory(k), k = start, start + 1, ... (at most 400 of them), printing each commit. With
+# pause_at >= 0 it stops (sleeps) in the middle of writing trajectory `pause_at`, after some of its
+# arrays are written: the dataset writes every array through `write_rows`.
 WRITER = textwrap.dedent("""
-    import sys, time, zarr
+    import sys, time
     sys.path.insert(0, {tests!r})
     from trajectories import ACT, GOAL, OBS, trajectory
+    import jarena.data.dataset as dataset_module
     from jarena.data import TrajectoryDataset
     path, k, pause_at = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
     ds = TrajectoryDataset(path, "a", obs_config=OBS, act_config=ACT, goal_config=GOAL, chunk_bytes=256)
-    setitem, writes = zarr.Array.__setitem__, [0]
-    def paused(self, key, value):
-        setitem(self, key, value)
+    write_rows, writes = dataset_module.write_rows, [0]
+    def paused(array, start, data):
+        write_rows(array, start, data)
         if k == pause_at:
             writes[0] += 1
             if writes[0] == 4:
                 print("MID", flush=True)
                 time.sleep(600)
-    zarr.Array.__setitem__ = paused
-    while True:
+    dataset_module.write_rows = paused
+    for _ in range(400):
         ds.add_trajectory(**trajectory(k))
         print("COMMITTED", k, flush=True)
         k += 1
@@ -55,7 +57,7 @@ def _kill_after(proc, line_test):
             if line_test(line):
                 break
         else:
-            pytest.fail("writer exited early: " + proc.stderr.read())
+            pytest.fail("the writer stopped before it was killed: " + proc.stderr.read()[-2000:])
     finally:
         proc.send_signal(signal.SIGKILL)
         proc.wait()
