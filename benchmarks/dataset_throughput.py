@@ -9,8 +9,10 @@ sequential write is 1 MiB blocks to one file in the same directory, then ``fsync
 marked warm.
 
 Variants: one commit per trajectory (``add_trajectory``) or per group of 16 (``add_trajectories``), the
-default 256 KiB chunks or 4 MiB chunks, raw or zstd; reads of every trajectory (``get_trajectory``),
-the loader loading the whole dataset into memory, and the streaming loader drawing windows.
+default 1 MiB chunks or 256 KiB or 4 MiB chunks, raw or zstd, run ``--rounds`` times interleaved with the
+plain write (the figures are medians, and each write's ratio to the plain write of its round); reads
+of every trajectory (``get_trajectory``), the loader loading the whole dataset into memory, and the
+streaming loader drawing windows.
 
 Usage::
 
@@ -143,26 +145,42 @@ def read_dataset(path: str, key: jax.Array) -> list[dict]:
     return rows
 
 
+VARIANTS = ((1, 1 << 20, None), (16, 1 << 20, None), (1, 1 << 18, None), (16, 1 << 18, None),
+            (16, 1 << 22, None), (16, 1 << 20, "zstd"))
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--dir", default="/tmp/jarena_dataset_bench")
     parser.add_argument("--trajectories", type=int, default=200)
     parser.add_argument("--steps", type=int, default=100)
     parser.add_argument("--image", type=int, default=64)
+    parser.add_argument("--rounds", type=int, default=3, help="rounds of all writes, interleaved (medians kept)")
     parser.add_argument("--out", default=None, help="write the results as JSON here")
     args = parser.parse_args(argv)
     os.makedirs(args.dir, exist_ok=True)
     trajectories = make_trajectories(8, args.steps, args.image)
     total = args.trajectories * trajectory_bytes(trajectories[0])
-    results = [plain_write(args.dir, total)]
-    print(json.dumps(results[-1]), flush=True)
     path = os.path.join(args.dir, "dataset")
-    for group, chunk_bytes, compression in ((1, 1 << 18, None), (16, 1 << 18, None), (1, 1 << 22, None),
-                                            (16, 1 << 22, None), (16, 1 << 18, "zstd")):
-        results.append(write_dataset(path, trajectories, args.trajectories, group, chunk_bytes, compression,
-                                     args.image))
-        print(json.dumps(results[-1]), flush=True)
-    write_dataset(path, trajectories, args.trajectories, 16, 1 << 18, None, args.image)
+    rounds: dict[str, list[dict]] = {}
+    for r in range(args.rounds):
+        plain = plain_write(args.dir, total)
+        rounds.setdefault(plain["name"], []).append(plain)
+        for group, chunk_bytes, compression in VARIANTS:
+            row = write_dataset(path, trajectories, args.trajectories, group, chunk_bytes, compression, args.image)
+            row["over_plain_same_round"] = row["MB_per_s"] / plain["MB_per_s"]
+            rounds.setdefault(row["name"], []).append(row)
+            print(r, json.dumps(row), flush=True)
+    results = []
+    for name, rows in rounds.items():
+        summary = {"name": name, "rounds": len(rows)}
+        for k in rows[0]:
+            if k != "name":
+                summary[k] = float(np.median([row[k] for row in rows]))
+        summary["MB_per_s_all"] = [round(row["MB_per_s"]) for row in rows]
+        results.append(summary)
+        print(json.dumps(summary), flush=True)
+    write_dataset(path, trajectories, args.trajectories, 16, 1 << 20, None, args.image)
     for row in read_dataset(path, jax.random.key(0)):
         results.append(row)
         print(json.dumps(row), flush=True)

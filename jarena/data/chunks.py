@@ -33,36 +33,64 @@ def _raw_directory(array: zarr.Array) -> str | None:
     return os.path.join(str(array.store_path.store.root), array.store_path.path)
 
 
-def atomic_write(path: str, data) -> None:
-    """Writes ``data`` (bytes-like) to ``path`` through a temporary file and ``os.replace``."""
+def atomic_write(path: str, parts: list) -> None:
+    """Writes ``parts`` (bytes-like, one after another) to ``path`` through a temporary file and ``os.replace``."""
     tmp = f"{path}.{uuid.uuid4().hex}{PARTIAL_SUFFIX}"
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-    except FileNotFoundError:
-        os.makedirs(os.path.dirname(path), exist_ok=True)
-        with open(tmp, "wb") as f:
-            f.write(data)
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    with open(tmp, "wb", buffering=0) as f:
+        for part in parts:
+            f.write(part)
     os.replace(tmp, path)
 
 
-def write_rows(array: zarr.Array, start: int, data: np.ndarray) -> None:
-    """Writes ``data`` into rows ``start : start + len(data)`` of ``array`` (which must have room)."""
+def write_rows(array: zarr.Array, start: int, pieces: list[np.ndarray]) -> None:
+    """Writes ``pieces`` (arrays of rows, laid end to end) into ``array`` from row ``start`` (it must have room).
+
+    Raw arrays are written chunk file by chunk file straight from the pieces, without joining them first.
+    """
     directory = _raw_directory(array)
     if directory is None:
+        data = np.concatenate(pieces)
         array[start:start + data.shape[0]] = data
         return
-    data = np.ascontiguousarray(data, array.dtype)
-    rows, stop = array.chunks[0], start + data.shape[0]
+    pieces = [np.ascontiguousarray(p, array.dtype) for p in pieces if p.shape[0]]
+    bounds = np.cumsum([0] + [p.shape[0] for p in pieces]) + start
+    rows, stop = array.chunks[0], int(bounds[-1])
     tail = (0,) * (array.ndim - 1)
     for c in range(start // rows, (stop - 1) // rows + 1):
         lo, hi = max(start, c * rows), min(stop, (c + 1) * rows)
+        # the parts of the pieces that fall in rows lo:hi
+        parts = [p[max(lo - b0, 0):min(hi, b1) - b0] for p, b0, b1 in zip(pieces, bounds[:-1], bounds[1:], strict=True)
+                 if b0 < hi and b1 > lo]
         path = os.path.join(directory, array.metadata.encode_chunk_key((c,) + tail))
-        if lo == c * rows and hi == (c + 1) * rows:
-            chunk = data[lo - start:hi - start]
-        else:  # a partial chunk: keep the rows already there
+        if lo != c * rows or hi != (c + 1) * rows:  # a partial chunk: keep the rows already there
             chunk = np.zeros((rows,) + array.shape[1:], array.dtype)
             if os.path.exists(path):
-                chunk.reshape(-1).view(np.uint8)[:] = np.fromfile(path, np.uint8)
-            chunk[lo - c * rows:hi - c * rows] = data[lo - start:hi - start]
-        atomic_write(path, memoryview(chunk).cast("B"))
+                old = np.fromfile(path, np.uint8)
+                if old.size != chunk.nbytes:
+                    raise ValueError(f"chunk file {path} has {old.size} bytes, expected {chunk.nbytes}: corrupt store")
+                chunk.reshape(-1).view(np.uint8)[:] = old
+            chunk[lo - c * rows:hi - c * rows] = np.concatenate(parts)
+            parts = [chunk]
+        atomic_write(path, [memoryview(part).cast("B") for part in parts])
+
+
+def read_rows(array: zarr.Array, start: int, stop: int) -> np.ndarray:
+    """Rows ``start : stop`` of ``array``; raw chunk files are read directly (missing ones are fill, zeros)."""
+    directory = _raw_directory(array)
+    if directory is None or array.fill_value != 0:
+        return np.asarray(array[start:stop])
+    out = np.empty((stop - start,) + array.shape[1:], array.dtype)
+    rows, tail = array.chunks[0], (0,) * (array.ndim - 1)
+    for c in range(start // rows, (stop - 1) // rows + 1) if stop > start else ():
+        lo, hi = max(start, c * rows), min(stop, (c + 1) * rows)
+        path = os.path.join(directory, array.metadata.encode_chunk_key((c,) + tail))
+        try:
+            chunk = np.fromfile(path, array.dtype).reshape((rows,) + array.shape[1:])
+        except FileNotFoundError:
+            out[lo - start:hi - start] = 0
+            continue
+        except ValueError as e:
+            raise ValueError(f"chunk file {path} does not hold {rows} rows: corrupt store") from e
+        out[lo - start:hi - start] = chunk[lo - c * rows:hi - c * rows]
+    return out

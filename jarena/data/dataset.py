@@ -33,11 +33,11 @@ import numpy as np
 import zarr
 from zarr import codecs
 
-from jarena.data.chunks import PARTIAL_SUFFIX, write_rows
+from jarena.data.chunks import PARTIAL_SUFFIX, read_rows, write_rows
 from jarena.data.schema import GROUPS, DatasetError, Field, Schema
 
 FORMAT = 1
-MAX_CHUNK_ROWS = 8192
+MAX_CHUNK_ROWS = 16384
 MODES = ("r", "a", "w")
 SCHEMA_ATTR, COMMIT = "jarena_dataset", "commit"
 STEP_FIELDS = {"reward": Field((), "float32"), "terminated": Field((), "bool"), "truncated": Field((), "bool")}
@@ -94,7 +94,7 @@ class TrajectoryDataset:
 
     def __init__(self, path: str | os.PathLike, mode: str = "r", *, obs_config: Mapping | None = None,
                  act_config: Mapping | None = None, goal_config: Mapping | None = None,
-                 chunk_bytes: int = 1 << 18):
+                 chunk_bytes: int = 1 << 20):
         if mode not in MODES:
             raise DatasetError(f"unknown mode {mode!r}; valid modes are {list(MODES)} (read, append, write)")
         self.path, self.mode = os.fspath(path), mode
@@ -135,7 +135,7 @@ class TrajectoryDataset:
                               chunk_key_encoding={"name": "default", "separator": "."})
         commit = root.create_array(COMMIT, shape=(2,), chunks=(2,), dtype="int64", compressors=None, fill_value=0,
                                    chunk_key_encoding={"name": "default", "separator": "."})
-        write_rows(commit, 0, np.zeros(2, np.int64))
+        write_rows(commit, 0, [np.zeros(2, np.int64)])
         root.attrs.update({SCHEMA_ATTR: {"format": FORMAT, "schema": schema.to_json()}})
         old = None
         if os.path.exists(self.path):
@@ -200,12 +200,12 @@ class TrajectoryDataset:
             if array.shape[0] < need:
                 raise DatasetError(f"corrupt dataset at {self.path!r}: array {name!r} has {array.shape[0]} rows, "
                                    f"the commit record needs {need}")
-        lengths = np.asarray(arrays["trajectory/length"][:n], np.int64)
+        lengths = read_rows(arrays["trajectory/length"], 0, n).astype(np.int64)
         if n and (lengths.min() < 1 or int(lengths.sum()) != steps):
             raise DatasetError(f"corrupt dataset at {self.path!r}: trajectory lengths sum to {int(lengths.sum())}, "
                                f"the commit record says {steps} steps")
         self._root, self._arrays, self._commit = root, arrays, commit
-        self._set_committed(lengths, np.asarray(arrays["trajectory/episode"][:n], np.int64))
+        self._set_committed(lengths, read_rows(arrays["trajectory/episode"], 0, n).astype(np.int64))
 
     def _set_committed(self, lengths: np.ndarray, episodes: np.ndarray) -> None:
         self._lengths, self._episodes = lengths, episodes
@@ -253,7 +253,8 @@ class TrajectoryDataset:
         return self._arrays[name]
 
     def rows(self, name: str, start: int, stop: int) -> np.ndarray:
-        return np.asarray(self._arrays[name][start:stop])
+        """Rows ``start : stop`` of array ``name`` (committed rows are data; later ones are not)."""
+        return read_rows(self._arrays[name], start, stop)
 
     def get_trajectory(self, i: int) -> dict[str, Any]:
         """Trajectory ``i``: ``observation`` (T + 1, ...) and ``action`` (T, ...) dicts by output key, ``goal``
@@ -323,14 +324,14 @@ class TrajectoryDataset:
         new_steps = sum(int(c["step/reward"].shape[0]) for c in checked)
         start = {"observation": steps + n, "step": steps, "trajectory": n}
         for name, array in self._arrays.items():
-            kind = ROWS_PER[name.split("/")[0]]
-            data = np.concatenate([c[name] for c in checked])
-            a = start[kind]
-            if array.shape[0] < a + data.shape[0]:
-                array.resize((max(a + data.shape[0], 2 * array.shape[0]),) + array.shape[1:])
-            write_rows(array, a, data)
+            pieces = [c[name] for c in checked]
+            a = start[ROWS_PER[name.split("/")[0]]]
+            b = a + sum(p.shape[0] for p in pieces)
+            if array.shape[0] < b:  # grow the array's (metadata) shape fourfold: chunks past the data cost nothing
+                array.resize((max(b, 4 * array.shape[0], 16 * array.chunks[0]),) + array.shape[1:])
+            write_rows(array, a, pieces)
         # The commit point: one small file, replaced atomically.
-        write_rows(self._commit, 0, np.asarray([n + len(checked), steps + new_steps], np.int64))
+        write_rows(self._commit, 0, [np.asarray([n + len(checked), steps + new_steps], np.int64)])
         self._set_committed(np.concatenate([self._lengths] + [c["trajectory/length"] for c in checked]),
                             np.concatenate([self._episodes] + [c["trajectory/episode"] for c in checked]))
         return list(range(n, n + len(checked)))

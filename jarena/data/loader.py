@@ -28,6 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jarena.data.chunks import read_rows
 from jarena.data.dataset import GROUPS, ROWS_PER, STEP_FIELDS, TrajectoryDataset
 from jarena.data.schema import DatasetError
 
@@ -87,34 +88,39 @@ class _ChunkCache:
 
     def _read(self, array, size: int, ids: list[int]) -> list[np.ndarray]:
         def read(c):
-            return np.asarray(array[c * size:(c + 1) * size])
+            return read_rows(array, c * size, min((c + 1) * size, array.shape[0]))
 
         if len(ids) < 2:
             return [read(c) for c in ids]
         with concurrent.futures.ThreadPoolExecutor(min(self.workers, len(ids))) as pool:
             return list(pool.map(read, ids))
 
-    def rows(self, array, rows: np.ndarray) -> np.ndarray:
+    def rows(self, array, rows: np.ndarray, block: int = 64) -> np.ndarray:
+        """``array[rows]``, reading each chunk it needs once (``block`` chunks at a time, to bound memory)."""
         size = array.chunks[0]
-        ids, inverse = np.unique(rows // size, return_inverse=True)
-        with self.lock:
-            missing = [int(c) for c in ids if (id(array), int(c)) not in self.chunks]
-        loaded = dict(zip(missing, self._read(array, size, missing), strict=True))
         out = np.empty((rows.shape[0],) + array.shape[1:], array.dtype)
-        with self.lock:
-            for k, c in enumerate(ids):
-                key = (id(array), int(c))
-                chunk = self.chunks.get(key)
-                if chunk is None:
-                    chunk = loaded[int(c)]
-                    self.chunks[key] = chunk
-                    self.used += chunk.nbytes
-                self.chunks.move_to_end(key)
-                where = inverse == k
-                out[where] = chunk[rows[where] - int(c) * size]
-            while self.used > self.budget and self.chunks:
-                _, old = self.chunks.popitem(last=False)
-                self.used -= old.nbytes
+        chunk_of = rows // size
+        order = np.argsort(chunk_of, kind="stable")
+        ids, firsts = np.unique(chunk_of[order], return_index=True)
+        lasts = np.append(firsts[1:], rows.shape[0])
+        for b in range(0, ids.size, block):
+            with self.lock:
+                missing = [int(c) for c in ids[b:b + block] if (id(array), int(c)) not in self.chunks]
+            loaded = dict(zip(missing, self._read(array, size, missing), strict=True))
+            with self.lock:
+                for k in range(b, min(b + block, ids.size)):
+                    c, key = int(ids[k]), (id(array), int(ids[k]))
+                    chunk = self.chunks.get(key)
+                    if chunk is None:
+                        chunk = loaded[c]
+                        self.chunks[key] = chunk
+                        self.used += chunk.nbytes
+                    self.chunks.move_to_end(key)
+                    where = order[firsts[k]:lasts[k]]
+                    out[where] = chunk[rows[where] - c * size]
+                while self.used > self.budget and self.chunks:
+                    _, old = self.chunks.popitem(last=False)
+                    self.used -= old.nbytes
         return out
 
 
@@ -200,10 +206,10 @@ class Loader:
         out = {}
         for group, name, _ in self._fields():
             array, wanted = self.dataset.array(name), rows[ROWS_PER[group]]
-            if wanted[-1] - wanted[0] + 1 == wanted.size:  # contiguous (e.g. all trajectories)
-                data = np.asarray(array[int(wanted[0]):int(wanted[-1]) + 1])
+            if wanted[-1] - wanted[0] + 1 == wanted.size:  # contiguous (e.g. all trajectories): one read
+                data = read_rows(array, int(wanted[0]), int(wanted[-1]) + 1)
             else:
-                data = np.asarray(array.oindex[wanted])
+                data = _ChunkCache(0).rows(array, wanted)
             out[name] = jax.device_put(data)
         return out
 
