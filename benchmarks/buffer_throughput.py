@@ -2,8 +2,10 @@
 
 Both buffers hold the same items (a dict of 17-float observation and next observation, 6-float action,
 reward, flags, episode id and step: 176 bytes) from B arenas, ``--capacity`` items in all, and run on
-the same device. Every call is jitted (the add with the state donated) and timed over ``--calls``
-calls after a warm-up call, around ``jax.block_until_ready``; the figure is the median of ``--repeats``.
+the same device. Every call is jitted (the add with the state donated); after a warm-up call, the
+variants compared take turns call by call (so a machine whose load drifts treats them alike), each
+call timed with ``time.perf_counter`` around ``jax.block_until_ready``; the figures are medians over
+``--calls`` calls (dispatch and the per-call sync included, for every variant alike).
 
 - add: one step of B arenas per call (ours (B, ...), flashbax (B, 1, ...)); ``--chunk`` steps per call
   (ours (T, B, ...), flashbax (B, T, ...)); and ``--loop`` one-step adds inside one compiled loop, as in
@@ -58,18 +60,18 @@ def nbytes(tree) -> int:
     return sum(x.nbytes for x in jax.tree_util.tree_leaves(tree))
 
 
-def timed(fn, calls: int, repeats: int) -> float:
-    """Median seconds per call of ``fn(i)`` (whose result is blocked on at the end of each repeat)."""
-    out = fn(0)
-    jax.block_until_ready(out)
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        for i in range(calls):
-            out = fn(i)
-        jax.block_until_ready(out)
-        times.append((time.perf_counter() - start) / calls)
-    return statistics.median(times)
+def timed(fns: dict, calls: int) -> dict[str, float]:
+    """Median seconds per call of each ``fn(i)``; the functions take turns call by call (A/B/A/B...), each
+    call blocked on, so that a machine whose load drifts treats them alike. One warm-up call each."""
+    for fn in fns.values():
+        jax.block_until_ready(fn(0))
+    times = {name: [] for name in fns}
+    for i in range(calls):
+        for name, fn in fns.items():
+            start = time.perf_counter()
+            jax.block_until_ready(fn(i))
+            times[name].append(time.perf_counter() - start)
+    return {name: statistics.median(t) for name, t in times.items()}
 
 
 # ---------------------------------------------------------------------------------------------- ours
@@ -113,8 +115,9 @@ def fill_flashbax(buffer, item, num_arenas, per_arena, chunk=64):
 
 
 # ---------------------------------------------------------------------------------------------- runs
-def _time_adds(add, init, batch, calls, repeats):
-    """Seconds per ``add(state, batch)`` call with the state donated; and whether the state stayed in place."""
+def _adder(add, init, batch):
+    """``(call, in_place)``: ``call(i)`` adds ``batch`` to a donated state; ``in_place()`` says whether the
+    state's first leaf still lives where it started."""
     state = [init()]
     first = jax.tree_util.tree_leaves(state[0])[0].unsafe_buffer_pointer()
 
@@ -122,8 +125,7 @@ def _time_adds(add, init, batch, calls, repeats):
         state[0] = add(state[0], batch)
         return state[0]
 
-    seconds = timed(call, calls, repeats)
-    return seconds, jax.tree_util.tree_leaves(state[0])[0].unsafe_buffer_pointer() == first
+    return call, lambda: jax.tree_util.tree_leaves(state[0])[0].unsafe_buffer_pointer() == first
 
 
 def _looped(add, steps, flashbax_layout):
@@ -143,46 +145,43 @@ def _looped(add, steps, flashbax_layout):
 def bench_adds(args, item, results):
     b, per_arena = args.arenas, args.capacity // args.arenas
     small_per_arena = max(per_arena // 64, args.loop)
-    fb = None
-    if args.flashbax:
-        import flashbax
-
-        def fb(per_arena):
-            return flashbax.make_trajectory_buffer(add_batch_size=b, sample_batch_size=args.batch,
-                                                   sample_sequence_length=1, period=1, min_length_time_axis=1,
-                                                   max_length_time_axis=per_arena)
     for kind, steps in (("call", 1), ("call", args.chunk), ("loop", args.loop)):
         batch = stream(b, 0, steps)
         added = nbytes(batch)
         row = {"kind": kind, "steps_per_call": steps, "items_per_call": b * steps, "bytes_per_call": added}
-        for capacity_per_arena, tag in ((per_arena, ""), (small_per_arena, "_small")):
+        fns, checks = {}, {}
+        for capacity_per_arena, tag in ((per_arena, "ours"), (small_per_arena, "ours_small")):
             buffer = jarena.data.make_buffer(b, b * capacity_per_arena, args.batch)
             if kind == "loop":
                 add, data = _looped(buffer.add, steps, False), batch
             else:
                 add = jax.jit(buffer.add, donate_argnums=0)
                 data = jax.tree_util.tree_map(lambda x: x[0], batch) if steps == 1 else batch
-            row[f"ours_s{tag}"], row[f"ours_in_place{tag}"] = _time_adds(add, lambda buffer=buffer: buffer.init(item),
-                                                                         data, args.calls, args.repeats)
-            if fb is not None and not tag:
-                other = fb(capacity_per_arena)
-                fadd = _looped(other.add, steps, True) if kind == "loop" else jax.jit(other.add, donate_argnums=0)
-                fdata = batch if kind == "loop" else batch_major(batch)
-                row["flashbax_s"], _ = _time_adds(fadd, lambda other=other: other.init(item), fdata, args.calls,
-                                                  args.repeats)
+            fns[tag], checks[tag] = _adder(add, lambda buffer=buffer: buffer.init(item), data)
+        if args.flashbax:
+            import flashbax
+
+            other = flashbax.make_trajectory_buffer(add_batch_size=b, sample_batch_size=args.batch,
+                                                    sample_sequence_length=1, period=1, min_length_time_axis=1,
+                                                    max_length_time_axis=per_arena)
+            fadd = _looped(other.add, steps, True) if kind == "loop" else jax.jit(other.add, donate_argnums=0)
+            fns["flashbax"], _ = _adder(fadd, lambda other=other: other.init(item),
+                                        batch if kind == "loop" else batch_major(batch))
         # Copying the added bytes into a buffer-sized array, row after row (cold memory, as a ring write).
         src = np.ones(added, np.uint8)
         rows = np.ones((max(args.capacity * nbytes(item) // added, 2), added), np.uint8)  # pages touched
-        row["memcpy_s"] = timed(lambda i, rows=rows: np.copyto(rows[i % rows.shape[0]], src), args.calls,
-                                args.repeats)
-        del rows
+        fns["memcpy"] = lambda i, rows=rows, src=src: np.copyto(rows[i % rows.shape[0]], src)
         copy = jax.jit(lambda t: jax.tree_util.tree_map(lambda x: x + jnp.zeros((), x.dtype), t))
-        row["jit_copy_s"] = timed(lambda i: copy(batch), args.calls, args.repeats)
-        row["ours_items_per_s"] = b * steps / row["ours_s"]
-        if "flashbax_s" in row:
-            row["flashbax_items_per_s"] = b * steps / row["flashbax_s"]
-        row["ours_over_memcpy"] = row["ours_s"] / row["memcpy_s"]
-        row["ours_over_jit_copy"] = row["ours_s"] / row["jit_copy_s"]
+        fns["jit_copy"] = lambda i, batch=batch: copy(batch)
+        seconds = timed(fns, args.calls)
+        del fns, rows
+        row.update({f"{name}_s": t for name, t in seconds.items()})
+        row.update({f"{name}_in_place": check() for name, check in checks.items()})
+        for name in ("ours", "flashbax"):
+            if name in seconds:
+                row[f"{name}_items_per_s"] = b * steps / seconds[name]
+        row["ours_over_memcpy"] = seconds["ours"] / seconds["memcpy"]
+        row["ours_over_jit_copy"] = seconds["ours"] / seconds["jit_copy"]
         row["small_buffer_items"] = b * small_per_arena
         results["add"].append(row)
         print(json.dumps(row), flush=True)
@@ -192,25 +191,24 @@ def bench_samples(args, item, results):
     b, per_arena = args.arenas, args.capacity // args.arenas
     _, buffers = ours(b, args.capacity, args.batch, args.length)
     state = fill_ours(buffers["transition"], item, b, per_arena)
-    fstates = {}
+    others = {}
     if args.flashbax:
         fbs = flashbax_buffers(b, per_arena, args.batch, args.length)
         fstate = fill_flashbax(fbs["transition"], item, b, per_arena)
-        fstates = {name: (fb, fstate) for name, fb in fbs.items()}
+        others = {name: (jax.jit(fb.sample), fstate) for name, fb in fbs.items()}
     keys = jax.random.split(jax.random.key(0), args.calls)
     for mode, buffer in buffers.items():
         sample = jax.jit(buffer.sample)
         out = sample(state, keys[0])
         items = int(np.prod(out.mask.shape))
-        seconds = timed(lambda i, sample=sample: sample(state, keys[i]), args.calls, args.repeats)
-        row = {"mode": mode, "items_per_sample": items, "ours_s": seconds, "ours_items_per_s": items / seconds,
-               "ours_valid_fraction": float(np.mean(out.mask))}
-        if mode in fstates:
-            fb, fstate = fstates[mode]
-            fsample = jax.jit(fb.sample)
-            fseconds = timed(lambda i, fsample=fsample, fstate=fstate: fsample(fstate, keys[i]), args.calls,
-                             args.repeats)
-            row.update(flashbax_s=fseconds, flashbax_items_per_s=items / fseconds)
+        fns = {"ours": lambda i, sample=sample: sample(state, keys[i])}
+        if mode in others:
+            fsample, fstate = others[mode]
+            fns["flashbax"] = lambda i, fsample=fsample, fstate=fstate: fsample(fstate, keys[i])
+        seconds = timed(fns, args.calls)
+        row = {"mode": mode, "items_per_sample": items, "ours_valid_fraction": float(np.mean(out.mask))}
+        for name, t in seconds.items():
+            row.update({f"{name}_s": t, f"{name}_items_per_s": items / t})
         results["sample"].append(row)
         print(json.dumps(row), flush=True)
 
@@ -223,8 +221,7 @@ def main(argv=None):
     parser.add_argument("--length", type=int, default=8, help="L, window length")
     parser.add_argument("--chunk", type=int, default=16, help="steps per add in the chunked add")
     parser.add_argument("--loop", type=int, default=64, help="one-step adds per call in the looped add")
-    parser.add_argument("--calls", type=int, default=200)
-    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--calls", type=int, default=500, help="timed calls of each variant (medians kept)")
     parser.add_argument("--no-flashbax", dest="flashbax", action="store_false")
     parser.add_argument("--out", default=None, help="write the results as JSON here")
     args = parser.parse_args(argv)

@@ -13,10 +13,11 @@ In the manner of flashbax, :func:`make_buffer` validates its arguments, binds th
 Layout: one ring per arena, stored time-major like rollouts: every leaf has shape
 ``(capacity_per_arena, num_arenas, *item_shape)``, so adding one step of B arenas writes one
 contiguous block (``lax.dynamic_update_slice``, in place when the state is donated), and a rollout's
-``(T, B, ...)`` arrays add in one call. Besides the items the state keeps, per slot, how far it is into
-a contiguous stretch of one episode (``run``, from the items' episode ids and step indices), whether
-the episode ended there, and whether it ends an episode added from its first step; so window and trajectory
-sampling (:mod:`jarena.data.sampling`) never cross an episode boundary unless asked to.
+``(T, B, ...)`` arrays add in one call. Besides the items the state keeps, per slot (packed in one
+int32, ``meta``), how far it is into a contiguous stretch of one episode (``run``, from the items'
+episode ids and step indices), whether the episode ended there, and whether it ends an episode added
+from its first step; so window and trajectory sampling (:mod:`jarena.data.sampling`) never cross an
+episode boundary unless asked to.
 """
 
 from __future__ import annotations

@@ -61,10 +61,13 @@ def _logical(state: BufferState, slot: Array) -> Array:
     return (slot - _oldest(state)) % c
 
 
-def _gather(state: BufferState, slot: Array, arena: Array, mask: Array, pad: bool = False) -> BufferSample:
-    """Gathers items at ``(slot, arena)`` (arrays of one shape); with ``pad``, zeros where ``mask`` is false."""
+def _gather(state: BufferState, logical: Array, arena: Array, mask: Array, pad: bool = False) -> BufferSample:
+    """Gathers the items at logical positions ``logical`` of arenas ``arena`` (arrays of one shape); with
+    ``pad``, zeros where ``mask`` is false."""
+    c, _ = _sizes(state)
+    slot = (_oldest(state) + logical) % c
     meta = state.meta[slot, arena]
-    run = jnp.minimum(marks.run(meta), _logical(state, slot) + 1)
+    run = jnp.minimum(marks.run(meta), logical + 1)
 
     def take(x):
         value = x[slot, arena]
@@ -96,9 +99,7 @@ def sample_transitions(state: BufferState, key: Array, batch_size: int) -> Buffe
     key_arena, key_time = jax.random.split(key)
     arena = jax.random.randint(key_arena, (batch_size,), 0, b)
     logical = jax.random.randint(key_time, (batch_size,), 0, jnp.maximum(state.count, 1))
-    c, _ = _sizes(state)
-    slot = (_oldest(state) + logical) % c
-    return _gather(state, slot, arena, jnp.full((batch_size,), state.count > 0))
+    return _gather(state, logical, arena, jnp.full((batch_size,), state.count > 0))
 
 
 def can_sample_transitions(state: BufferState) -> Array:
@@ -156,8 +157,8 @@ def sample_windows(state: BufferState, key: Array, batch_size: int, length: int,
         start, arena, ok = jax.lax.cond(jnp.all(ok), lambda args: args, exact, (start, arena, ok))
         ready = ready & ok[:, None]
 
-    slot = (_oldest(state) + start[:, None] + jnp.arange(length)) % c
-    return _gather(state, slot, arena[:, None], jnp.broadcast_to(ready, (batch_size, length)))
+    return _gather(state, start[:, None] + jnp.arange(length), arena[:, None],
+                   jnp.broadcast_to(ready, (batch_size, length)))
 
 
 def can_sample_windows(state: BufferState, length: int, across: bool = False) -> Array:
@@ -195,9 +196,9 @@ def sample_trajectories(state: BufferState, key: Array, batch_size: int, max_len
     offset = jnp.arange(max_length)
     slot = (start_slot[:, None] + offset) % c
     start_run = marks.run(state.meta[start_slot, arena])[:, None]
-    mask = ((marks.run(state.meta[slot, arena[:, None]]) == start_run + offset)
-            & (_logical(state, start_slot)[:, None] + offset < state.count) & any_valid)
-    return _gather(state, slot, arena[:, None], mask, pad=True)
+    logical = _logical(state, start_slot)[:, None] + offset
+    mask = (marks.run(state.meta[slot, arena[:, None]]) == start_run + offset) & (logical < state.count) & any_valid
+    return _gather(state, jnp.where(mask, logical, 0), arena[:, None], mask, pad=True)
 
 
 def can_sample_trajectories(state: BufferState, complete_only: bool = True) -> Array:
