@@ -4,7 +4,8 @@
     state = buffer.init(jarena.data.experience_spec(arena))
 """
 
-from jarena.data.buffer import Buffer, BufferError, BufferState, make_buffer
+from jarena.data.accessors import Accessors, BufferError
+from jarena.data.buffer import Buffer, BufferState, make_buffer
 from jarena.data.collect import collect, configs_for, resize_images
 from jarena.data.dataset import TrajectoryDataset
 from jarena.data.experience import Experience, experience_spec, transition_from
@@ -18,7 +19,7 @@ from jarena.data.sampling import (
 from jarena.data.schema import DatasetError, Field, Schema
 from jarena.data.splits import split_trajectories
 
-__all__ = ["Buffer", "BufferError", "BufferSample", "BufferState", "DatasetError", "Experience", "Field", "Loader",
-           "Schema", "TrajectoryDataset", "collect", "configs_for", "experience_spec", "make_buffer",
-           "resize_images", "sample_trajectories", "sample_transitions", "sample_windows", "split_trajectories",
-           "transition_from"]
+__all__ = ["Accessors", "Buffer", "BufferError", "BufferSample", "BufferState", "DatasetError", "Experience",
+           "Field", "Loader", "Schema", "TrajectoryDataset", "collect", "configs_for", "experience_spec",
+           "make_buffer", "resize_images", "sample_trajectories", "sample_transitions", "sample_windows",
+           "split_trajectories", "transition_from"]

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from typing import Any
 
 import jax
@@ -33,16 +33,13 @@ import numpy as np
 from flax import struct
 
 from jarena.data import marks, sampling
+from jarena.data.accessors import DEFAULT, Accessors, BufferError
 from jarena.data.sampling import BufferSample
 
 Array = jax.Array
 PyTree = Any
 
 MODES = ("transition", "window", "window_across", "trajectory")
-
-
-class BufferError(ValueError):
-    """Bad buffer arguments, or a batch whose structure, shapes or dtypes do not fit the buffer."""
 
 
 @struct.dataclass
@@ -112,39 +109,15 @@ class Buffer:
         return dataclasses.replace(self, **changes)
 
 
-# ---------------------------------------------------------------------------------------------- accessors
-def field(name: str) -> Callable[[PyTree], Array]:
-    """An accessor reading ``name`` from an item or batch (attribute, or key of a mapping)."""
-
-    def get(x):
-        try:
-            return x[name] if isinstance(x, Mapping) else getattr(x, name)
-        except (KeyError, AttributeError):
-            raise BufferError(f"the buffer reads {name!r} from each item to find episode boundaries, but "
-                              f"{type(x).__name__} has no {name!r}; store items with 'episode', 'step', "
-                              f"'terminated' and 'truncated' (e.g. jarena.data.Experience), or pass "
-                              f"episode_of=, step_of=, done_of= to make_buffer") from None
-
-    return get
-
-
-_episode_of = field("episode")
-_step_of = field("step")
-
-
-def _default_done(x) -> Array:
-    return field("terminated")(x) | field("truncated")(x)
-
-
 def _path_name(path) -> str:
     return jax.tree_util.keystr(path) or "<item>"
 
 
 # ---------------------------------------------------------------------------------------------- init / add
-def init(item: PyTree, *, num_arenas: int, capacity_per_arena: int, episode_of=_episode_of,
-         step_of=_step_of, done_of=_default_done) -> BufferState:
+def init(item: PyTree, *, num_arenas: int, capacity_per_arena: int, accessors: Accessors = DEFAULT) -> BufferState:
     """An empty buffer state for items shaped like ``item`` (one transition, no batch axes)."""
-    for what, fn, kinds in (("episode id", episode_of, "iu"), ("step", step_of, "iu"), ("done flag", done_of, "b")):
+    for what, fn, kinds in (("episode id", accessors.episode_of, "iu"), ("step", accessors.step_of, "iu"),
+                            ("done flag", accessors.done_of, "b")):
         value = jax.eval_shape(fn, item)
         if value.shape != () or np.dtype(value.dtype).kind not in kinds:
             raise BufferError(f"init: the item's {what} must be a scalar of kind {kinds!r}, got shape "
@@ -188,17 +161,16 @@ def _steps_in(state: BufferState, batch: PyTree) -> int | None:
     return t
 
 
-def add(state: BufferState, batch: PyTree, *, episode_of=_episode_of, step_of=_step_of,
-        done_of=_default_done) -> BufferState:
+def add(state: BufferState, batch: PyTree, *, accessors: Accessors = DEFAULT) -> BufferState:
     """Adds one step (leaves (B, ...)) or T steps (leaves (T, B, ...)) of B arenas, overwriting the oldest."""
     t = _steps_in(state, batch)
     if t is None:
         batch = jax.tree_util.tree_map(lambda x: jnp.expand_dims(x, 0), batch)
         t = 1
     c, b = state.meta.shape
-    episode = jnp.asarray(episode_of(batch)).astype(jnp.int32)
-    step = jnp.asarray(step_of(batch)).astype(jnp.int32)
-    done = jnp.asarray(done_of(batch)).astype(bool)
+    episode = jnp.asarray(accessors.episode_of(batch)).astype(jnp.int32)
+    step = jnp.asarray(accessors.step_of(batch)).astype(jnp.int32)
+    done = jnp.asarray(accessors.done_of(batch)).astype(bool)
     for what, x in (("episode ids", episode), ("steps", step), ("done flags", done)):
         if x.shape != (t, b):
             raise BufferError(f"add: the batch's {what} have shape {x.shape}, expected {(t, b)}")
@@ -281,24 +253,25 @@ def make_buffer(num_arenas: int, capacity: int, sample_batch_size: int, *, mode:
                               f"(capacity {capacity} // num_arenas {num_arenas})")
     if min_size > capacity:
         raise BufferError(f"min_size={min_size} exceeds capacity={capacity}")
-    accessors = dict(episode_of=episode_of or _episode_of, step_of=step_of or _step_of,
-                     done_of=done_of or _default_done)
+    accessors = Accessors(episode_of=episode_of or DEFAULT.episode_of, step_of=step_of or DEFAULT.step_of,
+                          done_of=done_of or DEFAULT.done_of)
 
     if mode == "transition":
-        sample = functools.partial(sampling.sample_transitions, batch_size=sample_batch_size)
+        sample = functools.partial(sampling.sample_transitions, batch_size=sample_batch_size, accessors=accessors)
         ready = sampling.can_sample_transitions
     elif mode == "trajectory":
         sample = functools.partial(sampling.sample_trajectories, batch_size=sample_batch_size, max_length=length,
-                                   complete_only=complete_only)
+                                   complete_only=complete_only, accessors=accessors)
         ready = functools.partial(sampling.can_sample_trajectories, complete_only=complete_only)
     else:
         across = mode == "window_across"
         sample = functools.partial(sampling.sample_windows, batch_size=sample_batch_size, length=length,
-                                   across=across)
+                                   across=across, accessors=accessors)
         ready = functools.partial(sampling.can_sample_windows, length=length, across=across)
 
     def can_sample(state: BufferState) -> Array:
         return (state.size >= min_size) & ready(state)
 
-    return Buffer(init=functools.partial(init, num_arenas=num_arenas, capacity_per_arena=per_arena, **accessors),
-                  add=functools.partial(add, **accessors), sample=sample, can_sample=can_sample)
+    return Buffer(init=functools.partial(init, num_arenas=num_arenas, capacity_per_arena=per_arena,
+                                         accessors=accessors),
+                  add=functools.partial(add, accessors=accessors), sample=sample, can_sample=can_sample)

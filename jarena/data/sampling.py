@@ -20,6 +20,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from jarena.data import marks
+from jarena.data.accessors import DEFAULT, Accessors
 
 if TYPE_CHECKING:
     from jarena.data.buffer import BufferState
@@ -38,7 +39,7 @@ class BufferSample:
         has nothing to sample (``can_sample`` false), where the items are arbitrary.
       first: bool; the item is the first stored one of its episode (its episode's start, or the oldest
         item left of it).
-      done: bool; the episode ended with this item (its terminal flag).
+      done: bool; the episode ended with this item (its terminal flag, read by the buffer's ``done_of``).
     """
 
     experience: PyTree
@@ -61,13 +62,12 @@ def _logical(state: BufferState, slot: Array) -> Array:
     return (slot - _oldest(state)) % c
 
 
-def _gather(state: BufferState, logical: Array, arena: Array, mask: Array, pad: bool = False) -> BufferSample:
-    """Gathers the items at logical positions ``logical`` of arenas ``arena`` (arrays of one shape); with
-    ``pad``, zeros where ``mask`` is false."""
+def _gather(state: BufferState, logical: Array, arena: Array, mask: Array, accessors: Accessors,
+            pad: bool = False) -> BufferSample:
+    """Gathers the items at logical positions ``logical`` (S,) or (S, L) of arenas ``arena`` (broadcasting);
+    with ``pad``, zeros where ``mask`` is false."""
     c, _ = _sizes(state)
     slot = (_oldest(state) + logical) % c
-    meta = state.meta[slot, arena]
-    run = jnp.minimum(marks.run(meta), logical + 1)
 
     def take(x):
         value = x[slot, arena]
@@ -75,8 +75,19 @@ def _gather(state: BufferState, logical: Array, arena: Array, mask: Array, pad: 
             return value
         return jnp.where(mask.reshape(mask.shape + (1,) * (value.ndim - mask.ndim)), value, jnp.zeros((), x.dtype))
 
-    return BufferSample(experience=jax.tree_util.tree_map(take, state.experience), mask=mask,
-                        first=(run == 1) & mask, done=marks.done(meta) & mask)
+    experience = jax.tree_util.tree_map(take, state.experience)
+    # An item is first if its stored stretch of an episode starts there: for the first item of each unit
+    # from the buffer's bookkeeping; for the items after it from their own episode ids and steps (the same
+    # test that ``add`` made), which spares a second gather over the whole window.
+    head = (slot, arena) if logical.ndim == 1 else (slot[:, 0], jnp.broadcast_to(arena, slot.shape)[:, 0])
+    head_logical = logical if logical.ndim == 1 else logical[:, 0]
+    first = jnp.minimum(marks.run(state.meta[head]), head_logical + 1) == 1
+    if logical.ndim == 2:
+        episode, step = accessors.episode_of(experience), accessors.step_of(experience)
+        continues = (episode[:, 1:] == episode[:, :-1]) & (step[:, 1:] == step[:, :-1] + 1)
+        first = jnp.concatenate([first[:, None], ~continues], axis=1)
+    done = jnp.asarray(accessors.done_of(experience)).astype(bool)
+    return BufferSample(experience=experience, mask=mask, first=first & mask, done=done & mask)
 
 
 def _choose(key: Array, valid: Array, num: int) -> tuple[Array, Array]:
@@ -93,13 +104,14 @@ def _choose(key: Array, valid: Array, num: int) -> tuple[Array, Array]:
 
 
 # ---------------------------------------------------------------------------------------------- transitions
-def sample_transitions(state: BufferState, key: Array, batch_size: int) -> BufferSample:
+def sample_transitions(state: BufferState, key: Array, batch_size: int, accessors: Accessors = DEFAULT
+                       ) -> BufferSample:
     """``batch_size`` stored items drawn uniformly; leaves (S, ...)."""
     _, b = _sizes(state)
     key_arena, key_time = jax.random.split(key)
     arena = jax.random.randint(key_arena, (batch_size,), 0, b)
     logical = jax.random.randint(key_time, (batch_size,), 0, jnp.maximum(state.count, 1))
-    return _gather(state, logical, arena, jnp.full((batch_size,), state.count > 0))
+    return _gather(state, logical, arena, jnp.full((batch_size,), state.count > 0), accessors)
 
 
 def can_sample_transitions(state: BufferState) -> Array:
@@ -115,7 +127,7 @@ def valid_window_ends(state: BufferState, length: int) -> Array:
 
 
 def sample_windows(state: BufferState, key: Array, batch_size: int, length: int, across: bool = False,
-                   max_rounds: int = 8) -> BufferSample:
+                   max_rounds: int = 8, accessors: Accessors = DEFAULT) -> BufferSample:
     """``batch_size`` windows of ``length`` consecutive items; leaves (S, L, ...).
 
     Without ``across`` every window lies inside one episode, drawn uniformly among all such windows:
@@ -158,7 +170,7 @@ def sample_windows(state: BufferState, key: Array, batch_size: int, length: int,
         ready = ready & ok[:, None]
 
     return _gather(state, start[:, None] + jnp.arange(length), arena[:, None],
-                   jnp.broadcast_to(ready, (batch_size, length)))
+                   jnp.broadcast_to(ready, (batch_size, length)), accessors)
 
 
 def can_sample_windows(state: BufferState, length: int, across: bool = False) -> Array:
@@ -183,7 +195,7 @@ def trajectory_anchors(state: BufferState, complete_only: bool = True) -> Array:
 
 
 def sample_trajectories(state: BufferState, key: Array, batch_size: int, max_length: int,
-                        complete_only: bool = True) -> BufferSample:
+                        complete_only: bool = True, accessors: Accessors = DEFAULT) -> BufferSample:
     """``batch_size`` episodes drawn uniformly among stored ones; leaves (S, L_max, ...), zero padded.
 
     ``mask`` marks each episode's items; episodes longer than ``max_length`` are cut to their first
@@ -198,7 +210,7 @@ def sample_trajectories(state: BufferState, key: Array, batch_size: int, max_len
     start_run = marks.run(state.meta[start_slot, arena])[:, None]
     logical = _logical(state, start_slot)[:, None] + offset
     mask = (marks.run(state.meta[slot, arena[:, None]]) == start_run + offset) & (logical < state.count) & any_valid
-    return _gather(state, jnp.where(mask, logical, 0), arena[:, None], mask, pad=True)
+    return _gather(state, jnp.where(mask, logical, 0), arena[:, None], mask, accessors, pad=True)
 
 
 def can_sample_trajectories(state: BufferState, complete_only: bool = True) -> Array:
