@@ -85,12 +85,14 @@ def read_rows(array: zarr.Array, start: int, stop: int) -> np.ndarray:
     for c in range(start // rows, (stop - 1) // rows + 1) if stop > start else ():
         lo, hi = max(start, c * rows), min(stop, (c + 1) * rows)
         path = os.path.join(directory, array.metadata.encode_chunk_key((c,) + tail))
+        target = out[lo - start:hi - start]
         try:
-            chunk = np.fromfile(path, array.dtype).reshape((rows,) + array.shape[1:])
+            with open(path, "rb", buffering=0) as f:
+                f.seek((lo - c * rows) * target[:1].nbytes)  # rows lo:hi of the chunk, read in place
+                read = f.readinto(memoryview(target).cast("B")) if target.size else 0
         except FileNotFoundError:
-            out[lo - start:hi - start] = 0
+            target[...] = 0
             continue
-        except ValueError as e:
-            raise ValueError(f"chunk file {path} does not hold {rows} rows: corrupt store") from e
-        out[lo - start:hi - start] = chunk[lo - c * rows:hi - c * rows]
+        if read != target.nbytes or os.path.getsize(path) != rows * target[:1].nbytes:
+            raise ValueError(f"chunk file {path} does not hold {rows} rows: corrupt store")
     return out
