@@ -9,7 +9,7 @@ sequential write is 1 MiB blocks to one file in the same directory, then ``fsync
 marked warm.
 
 Variants: one commit per trajectory (``add_trajectory``) or per group of 16 (``add_trajectories``), the
-default 1 MiB chunks or 256 KiB or 4 MiB chunks, raw or zstd, run ``--rounds`` times interleaved with the
+default 4 MiB chunks or 1 MiB chunks, raw or zstd, run ``--rounds`` times interleaved with the
 plain write (the figures are medians, and each write's ratio to the plain write of its round); reads
 of every trajectory (``get_trajectory``), the loader loading the whole dataset into memory, and the
 streaming loader drawing windows.
@@ -145,8 +145,8 @@ def read_dataset(path: str, key: jax.Array) -> list[dict]:
     return rows
 
 
-VARIANTS = ((1, 1 << 20, None), (16, 1 << 20, None), (1, 1 << 18, None), (16, 1 << 18, None),
-            (16, 1 << 22, None), (16, 1 << 20, "zstd"))
+VARIANTS = ((1, 1 << 22, None), (16, 1 << 22, None), (1, 1 << 20, None), (16, 1 << 20, None),
+            (16, 1 << 22, "zstd"))
 
 
 def main(argv=None):
@@ -180,7 +180,7 @@ def main(argv=None):
         summary["MB_per_s_all"] = [round(row["MB_per_s"]) for row in rows]
         results.append(summary)
         print(json.dumps(summary), flush=True)
-    write_dataset(path, trajectories, args.trajectories, 16, 1 << 20, None, args.image)
+    write_dataset(path, trajectories, args.trajectories, 16, 1 << 22, None, args.image)
     for row in read_dataset(path, jax.random.key(0)):
         results.append(row)
         print(json.dumps(row), flush=True)

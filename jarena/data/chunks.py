@@ -1,11 +1,18 @@
-"""Writing rows of a zarr array chunk by chunk, each chunk file replaced atomically.
+"""Writing and reading rows of a zarr array chunk file by chunk file, safely against a killed writer.
 
-For uncompressed arrays in a local directory (the dataset's raw fields) the chunk files are written
-here directly, in zarr v3's format (the ``bytes`` codec stores a chunk as its C-order little-endian bytes,
-full-size even at the array's end): one copy from the caller's array to the file, where zarr's own
-write path makes several. Every file goes through a temporary file and ``os.replace``, so a killed writer
-leaves each chunk old or new. Other arrays (compressed ones, other stores) are written through zarr,
-which does the same for local stores (zarr >= 3.1.3).
+For uncompressed arrays in a local directory (the dataset's raw fields) chunk files are handled here
+directly, in zarr v3's format (the ``bytes`` codec stores a chunk as its C-order little-endian bytes,
+full-size even at the array's end). Rows are only ever appended past the rows already there (the
+committed ones), so:
+
+- a chunk that already holds rows gets the new rows written in place, at their offsets past the old
+  ones (``os.pwrite``): the bytes of earlier rows are never touched, whatever happens to the writer;
+- a new chunk file is written whole (the rows, then a sparse tail up to its full size) to a temporary
+  file and moved into place with ``os.replace``.
+
+Either way one copy goes from the caller's arrays to the file, where zarr's write path makes several,
+and no file is rewritten to append to it. Other arrays (compressed ones, other stores) go through zarr,
+which rewrites a chunk to a temporary file and ``os.replace``s it (zarr >= 3.1.3).
 """
 
 from __future__ import annotations
@@ -33,20 +40,45 @@ def _raw_directory(array: zarr.Array) -> str | None:
     return os.path.join(str(array.store_path.store.root), array.store_path.path)
 
 
-def atomic_write(path: str, parts: list) -> None:
-    """Writes ``parts`` (bytes-like, one after another) to ``path`` through a temporary file and ``os.replace``."""
+def atomic_write(path: str, parts: list, size: int | None = None, offset: int = 0) -> None:
+    """Writes ``parts`` (bytes-like, one after another, from byte ``offset``) to ``path`` through a temporary
+    file and ``os.replace``; bytes before ``offset`` and, with ``size``, up to ``size`` are (sparse) zeros."""
     tmp = f"{path}.{uuid.uuid4().hex}{PARTIAL_SUFFIX}"
     os.makedirs(os.path.dirname(path), exist_ok=True)
     with open(tmp, "wb", buffering=0) as f:
+        f.seek(offset)
         for part in parts:
             f.write(part)
+        if size is not None and f.tell() < size:
+            f.truncate(size)
     os.replace(tmp, path)
 
 
-def write_rows(array: zarr.Array, start: int, pieces: list[np.ndarray]) -> None:
-    """Writes ``pieces`` (arrays of rows, laid end to end) into ``array`` from row ``start`` (it must have room).
+def _write_in_place(path: str, offset: int, parts: list, size: int) -> None:
+    """Writes ``parts`` into the chunk file ``path`` (of ``size`` bytes) from byte ``offset`` on; a missing
+    file (its earlier rows never written: zeros) is created whole instead."""
+    try:
+        fd = os.open(path, os.O_WRONLY)
+    except FileNotFoundError:
+        atomic_write(path, parts, size=size, offset=offset)
+        return
+    try:
+        if os.fstat(fd).st_size != size:
+            raise ValueError(f"chunk file {path} has {os.fstat(fd).st_size} bytes, expected {size}: corrupt store")
+        for part in parts:
+            view = memoryview(part).cast("B")
+            while view.nbytes:
+                written = os.pwrite(fd, view, offset)
+                view, offset = view[written:], offset + written
+    finally:
+        os.close(fd)
 
-    Raw arrays are written chunk file by chunk file straight from the pieces, without joining them first.
+
+def write_rows(array: zarr.Array, start: int, pieces: list[np.ndarray]) -> None:
+    """Writes ``pieces`` (arrays of rows, laid end to end) into ``array`` from row ``start`` on.
+
+    The array must have room, and rows from ``start`` on must hold nothing worth keeping (they are
+    past the committed ones); rows before ``start`` are never modified.
     """
     directory = _raw_directory(array)
     if directory is None:
@@ -56,6 +88,7 @@ def write_rows(array: zarr.Array, start: int, pieces: list[np.ndarray]) -> None:
     pieces = [np.ascontiguousarray(p, array.dtype) for p in pieces if p.shape[0]]
     bounds = np.cumsum([0] + [p.shape[0] for p in pieces]) + start
     rows, stop = array.chunks[0], int(bounds[-1])
+    row_bytes = int(np.prod(array.shape[1:], dtype=np.int64)) * array.dtype.itemsize
     tail = (0,) * (array.ndim - 1)
     for c in range(start // rows, (stop - 1) // rows + 1):
         lo, hi = max(start, c * rows), min(stop, (c + 1) * rows)
@@ -63,16 +96,10 @@ def write_rows(array: zarr.Array, start: int, pieces: list[np.ndarray]) -> None:
         parts = [p[max(lo - b0, 0):min(hi, b1) - b0] for p, b0, b1 in zip(pieces, bounds[:-1], bounds[1:], strict=True)
                  if b0 < hi and b1 > lo]
         path = os.path.join(directory, array.metadata.encode_chunk_key((c,) + tail))
-        if lo != c * rows or hi != (c + 1) * rows:  # a partial chunk: keep the rows already there
-            chunk = np.zeros((rows,) + array.shape[1:], array.dtype)
-            if os.path.exists(path):
-                old = np.fromfile(path, np.uint8)
-                if old.size != chunk.nbytes:
-                    raise ValueError(f"chunk file {path} has {old.size} bytes, expected {chunk.nbytes}: corrupt store")
-                chunk.reshape(-1).view(np.uint8)[:] = old
-            chunk[lo - c * rows:hi - c * rows] = np.concatenate(parts)
-            parts = [chunk]
-        atomic_write(path, [memoryview(part).cast("B") for part in parts])
+        if c * rows < start:  # the chunk holds earlier rows: append in place, past them
+            _write_in_place(path, (lo - c * rows) * row_bytes, parts, rows * row_bytes)
+        else:
+            atomic_write(path, parts, size=rows * row_bytes)
 
 
 def read_rows(array: zarr.Array, start: int, stop: int) -> np.ndarray:
@@ -96,3 +123,20 @@ def read_rows(array: zarr.Array, start: int, stop: int) -> np.ndarray:
         if read != target.nbytes or os.path.getsize(path) != rows * target[:1].nbytes:
             raise ValueError(f"chunk file {path} does not hold {rows} rows: corrupt store")
     return out
+
+
+def is_raw(array: zarr.Array) -> bool:
+    """Whether :func:`read_rows` reads ``array``'s chunk files directly (raw bytes in a local store)."""
+    return _raw_directory(array) is not None and array.fill_value == 0
+
+
+def read_row_set(array: zarr.Array, rows: np.ndarray) -> np.ndarray:
+    """``array[rows]`` for any int rows, reading each run of consecutive rows once (for raw arrays: only
+    those bytes, not whole chunks)."""
+    unique, inverse = np.unique(rows, return_inverse=True)
+    if unique.size == 0:
+        return np.empty((0,) + array.shape[1:], array.dtype)
+    breaks = np.flatnonzero(np.diff(unique) != 1) + 1
+    runs = np.split(unique, breaks)
+    data = np.concatenate([read_rows(array, int(run[0]), int(run[-1]) + 1) for run in runs])
+    return data[inverse.reshape(-1)]

@@ -12,12 +12,12 @@ Layout of the store (a zarr group in the directory ``path``)::
 
 The group's attributes hold the schema (``jarena_dataset``: field configs as JSON); ``commit`` says how
 many trajectories and steps are visible. Arrays grow geometrically and may hold rows past the commit;
-those are invisible. A write puts all of a trajectory's rows first, then replaces the commit. Every
-chunk file is written to a temporary file and moved into place with ``os.replace`` (by
-:mod:`jarena.data.chunks` for raw arrays, by zarr >= 3.1.3 for compressed ones), so a killed writer
-leaves each file old or new, never torn. Rows of committed trajectories are rewritten only with their
-own values (when a partly filled chunk grows), so killing the writer loses at most the trajectories
-being written, and ``mode="a"`` resumes after them. Chunk files sit side by side (``c.7.0.0``).
+those are invisible. A write puts all of a trajectory's rows first, then replaces the commit. Rows are
+only appended past the committed ones, never over them: :mod:`jarena.data.chunks` writes new rows into
+a raw chunk in place past its committed bytes, and new chunk files (and the commit) to a temporary
+file moved into place with ``os.replace``; zarr (>= 3.1.3) rewrites compressed chunks the same way. So
+killing the writer loses at most the trajectories being written, and ``mode="a"`` resumes after them,
+writing over what they left. Chunk files sit side by side (``c.7.0.0``).
 """
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ class TrajectoryDataset:
 
     def __init__(self, path: str | os.PathLike, mode: str = "r", *, obs_config: Mapping | None = None,
                  act_config: Mapping | None = None, goal_config: Mapping | None = None,
-                 chunk_bytes: int = 1 << 20):
+                 chunk_bytes: int = 4 << 20):
         if mode not in MODES:
             raise DatasetError(f"unknown mode {mode!r}; valid modes are {list(MODES)} (read, append, write)")
         self.path, self.mode = os.fspath(path), mode

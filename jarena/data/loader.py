@@ -3,9 +3,9 @@
 The draw is a pure function of the key: a jitted index function picks (trajectory, step) pairs
 uniformly among the units of the chosen mode. When the selected trajectories fit in
 ``memory_budget`` bytes they are loaded onto the device once and batches are gathered there;
-otherwise each batch reads only the zarr chunks it touches (through an LRU cache of chunks within the
-budget), with the next batches read ahead on background threads. Both give the same batch for the
-same key.
+otherwise each batch streams from disk what it needs (raw fields: just its rows, from the chunk
+files; compressed fields: the zarr chunks it touches, through an LRU cache within the budget), with
+the next batches read ahead on a background thread. Both give the same batch for the same key.
 
 Batches are dicts; leaves have a leading (S,) for transitions and (S, L) for windows and trajectories:
 ``observation``, ``next_observation``, ``action``, ``goal`` (dicts by output key, goal repeated per
@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jarena.data.chunks import read_rows
+from jarena.data.chunks import is_raw, read_row_set, read_rows
 from jarena.data.dataset import GROUPS, ROWS_PER, STEP_FIELDS, TrajectoryDataset
 from jarena.data.schema import DatasetError
 
@@ -256,11 +256,14 @@ class Loader:
             kind = ROWS_PER[group]
             rows = self._rows(kind, flat_rank, flat_step)
             array = self.dataset.array(name)
+            # Raw arrays: read just the rows (runs of them); the page cache keeps what is hot. Others: whole
+            # chunks (zarr decodes a chunk at once), kept in an LRU cache within the budget.
+            read = read_row_set if is_raw(array) else self._cache.rows
             if group == "observation":
-                both = self._cache.rows(array, np.concatenate([rows, rows + 1]))
+                both = read(array, np.concatenate([rows, rows + 1]))
                 columns[name] = (both[:rows.size], both[rows.size:])
             else:
-                columns[name] = self._cache.rows(array, rows)
+                columns[name] = read(array, rows)
         lengths = np.asarray(self._lengths)
         return _assemble(columns, rank, step, mask, lengths, self.selected, self._layout(), np)
 

@@ -42,3 +42,14 @@ def test_read_rows_reads_raw_chunks_and_missing_ones_as_zeros(tmp_path):
     want[2:9], want[14:18] = rows[2:9], rows[14:18]
     np.testing.assert_array_equal(read_rows(array, 1, 19), want[1:19])
     np.testing.assert_array_equal(read_rows(array, 5, 5), want[5:5])
+
+
+def test_read_row_set_reads_any_rows_in_any_order(tmp_path):
+    from jarena.data.chunks import read_row_set
+
+    array = zarr.create_array(tmp_path / "a", shape=(30, 2), chunks=(4, 2), dtype="int32", fill_value=0,
+                              compressors=None)
+    rows = np.arange(60, dtype=np.int32).reshape(30, 2)
+    write_rows(array, 0, [rows])
+    wanted = np.array([7, 3, 4, 5, 29, 3, 0, 8, 9, 10, 11, 12])
+    np.testing.assert_array_equal(read_row_set(array, wanted), rows[wanted])

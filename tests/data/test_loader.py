@@ -34,9 +34,21 @@ def test_in_memory_and_streamed_batches_are_the_same(dataset, mode, length):
     for x, y in zip(memory.batches(jax.random.key(0), 4), stream.batches(jax.random.key(0), 4), strict=True):
         _equal(x, y)
         assert set(np.asarray(x["trajectory"]).ravel()) <= set(train.tolist())
-    assert stream._cache.used <= 2000 + max(a.nbytes for a in stream._cache.chunks.values())
+    assert stream._cache.used <= 2000 + max((a.nbytes for a in stream._cache.chunks.values()), default=0)
     _equal(dataset.sample(jax.random.key(7), 6, mode=mode, length=length, trajectories=train),
            memory.sample(jax.random.key(7)))
+
+
+def test_compressed_fields_stream_through_a_chunk_cache(tmp_path):
+    obs = {"rgb": dict(OBS["rgb"], compression="zstd"), "state": OBS["state"]}
+    with TrajectoryDataset(tmp_path / "z", "w", obs_config=obs, act_config=ACT, goal_config=GOAL,
+                           chunk_bytes=512) as ds:
+        ds.add_trajectories([trajectory(k) for k in range(N)])
+        memory = ds.loader(8, mode="window", length=2, memory_budget=1 << 30)
+        stream = ds.loader(8, mode="window", length=2, memory_budget=3000)
+        for i in range(3):
+            _equal(memory.sample(jax.random.key(i)), stream.sample(jax.random.key(i)))
+        assert stream._cache.chunks  # the compressed rgb chunks went through the cache
 
 
 def _expected_step(k, step):
