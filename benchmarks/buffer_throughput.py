@@ -1,7 +1,7 @@
 """Add and sample throughput (items/s) of ``jarena.data``'s buffer against flashbax's trajectory buffer.
 
 Both buffers hold the same items (a dict of 17-float observation and next observation, 6-float action,
-reward, flags, episode id and step: 176 bytes) from B arenas, ``--capacity`` items in all, and run on
+reward, flags, episode id and step: 174 bytes) from B arenas, ``--capacity`` items in all, and run on
 the same device. Every call is jitted (the add with the state donated); after a warm-up call, the
 variants compared take turns call by call (so a machine whose load drifts treats them alike), each
 call timed with ``time.perf_counter`` around ``jax.block_until_ready``; the figures are medians over
@@ -10,8 +10,9 @@ call timed with ``time.perf_counter`` around ``jax.block_until_ready``; the figu
 - add: one step of B arenas per call (ours (B, ...), flashbax (B, 1, ...)); ``--chunk`` steps per call
   (ours (T, B, ...), flashbax (B, T, ...)); and ``--loop`` one-step adds inside one compiled loop, as in
   a collection loop. Also the add's cost against copying the added bytes (``np.copyto`` into successive
-  rows of a buffer-sized array, and a jitted copy of the batch), and against the same add on a buffer 64
-  times smaller (an add that copied the whole buffer would scale with its size).
+  rows of a buffer-sized array, and a jitted copy of the batch), and against the same add on a smaller
+  buffer (``max(capacity / B / 64, --loop)`` steps per arena; an add that copied the whole buffer would
+  scale with its size).
 - sample: S items per call: transitions (flashbax: sequences of 1), windows of L items crossing episodes
   (ours ``window_across``; flashbax: sequences of L), and ours alone: windows inside one episode
   (``window``) and whole episodes padded to 200 (``trajectory``). Episodes last 200 steps.
