@@ -22,7 +22,6 @@ writing over what they left. Chunk files sit side by side (``c.7.0.0``).
 
 from __future__ import annotations
 
-import contextlib
 import os
 import shutil
 import uuid
@@ -33,8 +32,9 @@ import numpy as np
 import zarr
 from zarr import codecs
 
-from jarena.data.chunks import PARTIAL_SUFFIX, read_rows, write_rows
-from jarena.data.schema import GROUPS, DatasetError, Field, Schema
+from jarena.data.chunks import read_rows, write_rows
+from jarena.data.files import lock, remove_partial_files
+from jarena.data.schema import GROUPS, DatasetError, Field, Schema, as_fields, conform
 
 FORMAT = 1
 MAX_CHUNK_ROWS = 16384
@@ -121,7 +121,7 @@ class TrajectoryDataset:
         if os.path.exists(self.path) and os.listdir(self.path) and not _is_dataset(self.path):
             raise DatasetError(f"{self.path!r} exists and is not a jarena dataset; refusing to overwrite it")
         if os.path.exists(self.path):
-            _lock(self.path).close()  # raises if another process is writing to it
+            lock(self.path).close()  # raises if another process is writing to it
         parent = os.path.dirname(os.path.abspath(self.path))
         os.makedirs(parent, exist_ok=True)
         tmp = os.path.join(parent, f".{os.path.basename(os.path.abspath(self.path))}.{uuid.uuid4().hex}.tmp")
@@ -169,8 +169,8 @@ class TrajectoryDataset:
                 raise DatasetError(f"config mismatch on append to {self.path!r}:\n  " + "\n  ".join(diff))
         self._load(root, meta)
         if self.mode != "r":
-            self._lock = _lock(self.path)
-            _remove_partial_files(self.path)
+            self._lock = lock(self.path)
+            remove_partial_files(self.path)
 
     def _load(self, root: zarr.Group, meta: Mapping) -> None:
         """Opens the arrays and reads the commit record, checking that they agree."""
@@ -376,7 +376,7 @@ class TrajectoryDataset:
 
     def _check(self, trajectory: Mapping[str, Any], where: str) -> dict[str, np.ndarray]:
         """Validates one trajectory against the schema; returns its rows by array path (nothing written)."""
-        actions = _as_fields(trajectory["actions"], self.schema.action, "actions", where)
+        actions = as_fields(trajectory["actions"], self.schema.action, "actions", where)
         steps = {v.shape[0] if v.ndim else None for v in actions.values()}
         if len(steps) != 1 or None in steps or min(steps) < 1:
             raise DatasetError(f"{where}: actions must share one leading length T >= 1, got leading axes "
@@ -390,85 +390,22 @@ class TrajectoryDataset:
                 if data is not None:
                     raise DatasetError(f"{where}: a goal was given but the dataset's schema has no goal fields")
                 continue
-            values = data if group == "action" else _as_fields(data, fields, _ARGUMENT[group], where)
+            values = data if group == "action" else as_fields(data, fields, _ARGUMENT[group], where)
             for name, f in fields.items():
-                out[f"{group}/{name}"] = _conform(values[name], f, lead, f"{where}: {group} field {name!r}")[
+                out[f"{group}/{name}"] = conform(values[name], f, lead, f"{where}: {group} field {name!r}")[
                     None if group == "goal" else slice(None)]
         for name, f in STEP_FIELDS.items():
             value = trajectory.get({"reward": "rewards"}.get(name, name))
             value = np.zeros((t,), f.dtype) if value is None else value
-            out[f"step/{name}"] = _conform(value, f, (t,), f"{where}: {name}")
+            out[f"step/{name}"] = conform(value, f, (t,), f"{where}: {name}")
         out["trajectory/length"] = np.asarray([t], np.int64)
         out["trajectory/episode"] = np.asarray([int(trajectory.get("episode", -1))], np.int64)
         return out
 
 
 # ---------------------------------------------------------------------------------------------- helpers
-def _as_fields(data: Any, fields: Mapping[str, Field], what: str, where: str) -> dict[str, np.ndarray]:
-    if data is None:
-        raise DatasetError(f"{where}: missing {what}; expected fields {sorted(fields)}")
-    if not isinstance(data, Mapping):
-        if len(fields) != 1:
-            raise DatasetError(f"{where}: {what} must be a dict with fields {sorted(fields)}, got "
-                               f"{type(data).__name__}")
-        return {next(iter(fields)): np.asarray(data)}
-    missing = sorted(set(fields) - set(data))
-    if missing:
-        raise DatasetError(f"{where}: {what} lacks field(s) {missing}; the schema has {sorted(fields)}, "
-                           f"given {sorted(data)}")
-    return {name: np.asarray(data[name]) for name in fields}
-
-
-def _conform(value: Any, field: Field, lead: tuple[int, ...], what: str) -> np.ndarray:
-    value = np.asarray(value)
-    want = lead + field.shape
-    if value.shape != want:
-        raise DatasetError(f"{what}: expected shape {want} ({field.shape} per item), got {value.shape}")
-    if value.dtype != np.dtype(field.dtype) and not np.can_cast(value.dtype, field.dtype, casting="same_kind"):
-        raise DatasetError(f"{what}: dtype {value.dtype} does not convert safely to the field's {field.dtype}")
-    return value.astype(field.dtype, copy=False)
-
-
 def _stack(values: list, what: str) -> np.ndarray:
     try:
         return np.stack([np.asarray(v) for v in values])
     except ValueError as e:
         raise DatasetError(f"add_transition: {what} changes shape within the trajectory ({e})") from e
-
-
-def _remove_partial_files(path: str) -> None:
-    """Deletes temporary files that a killed writer left behind (chunks go to ``*.partial``, then are renamed)."""
-    for directory, _, files in os.walk(path):
-        for name in files:
-            if name.endswith(PARTIAL_SUFFIX):
-                with contextlib.suppress(OSError):
-                    os.remove(os.path.join(directory, name))
-
-
-class _DirectoryLock:
-    """An exclusive advisory lock on a directory, released when closed or when the process dies."""
-
-    def __init__(self, path: str):
-        import fcntl
-
-        self._fd = os.open(path, os.O_RDONLY)
-        try:
-            fcntl.flock(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(self._fd)
-            raise DatasetError(f"dataset {path!r} is open for writing by another process") from None
-
-    def close(self) -> None:
-        os.close(self._fd)
-
-
-class _NoLock:
-    def close(self) -> None:
-        pass
-
-
-def _lock(path: str):
-    try:
-        return _DirectoryLock(path)
-    except ImportError:  # no fcntl (Windows): no cross-process protection
-        return _NoLock()

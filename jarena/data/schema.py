@@ -142,3 +142,33 @@ def spec_fields(spec: Any, default_name: str) -> dict[str, Field]:
     if isinstance(spaces, tuple):
         raise DatasetError("tuple specs are not supported; give the dataset a dict of fields")
     return {default_name: Field(spec.shape, np.dtype(spec.dtype).name)}
+
+
+# ---------------------------------------------------------------------------------------------- checking data
+def as_fields(data: Any, fields: Mapping[str, Field], what: str, where: str) -> dict[str, np.ndarray]:
+    """``data`` (a dict by field name, or one array when there is one field) as arrays by field name;
+    keys not in ``fields`` are dropped. ``what`` and ``where`` name the data in errors."""
+    if data is None:
+        raise DatasetError(f"{where}: missing {what}; expected fields {sorted(fields)}")
+    if not isinstance(data, Mapping):
+        if len(fields) != 1:
+            raise DatasetError(f"{where}: {what} must be a dict with fields {sorted(fields)}, got "
+                               f"{type(data).__name__}")
+        return {next(iter(fields)): np.asarray(data)}
+    missing = sorted(set(fields) - set(data))
+    if missing:
+        raise DatasetError(f"{where}: {what} lacks field(s) {missing}; the schema has {sorted(fields)}, "
+                           f"given {sorted(data)}")
+    return {name: np.asarray(data[name]) for name in fields}
+
+
+def conform(value: Any, field: Field, lead: tuple[int, ...], what: str) -> np.ndarray:
+    """``value`` as an array of shape ``lead + field.shape`` and the field's dtype (converting only within a
+    kind, e.g. float64 to float32); a ``DatasetError`` naming ``what`` otherwise."""
+    value = np.asarray(value)
+    want = lead + field.shape
+    if value.shape != want:
+        raise DatasetError(f"{what}: expected shape {want} ({field.shape} per item), got {value.shape}")
+    if value.dtype != np.dtype(field.dtype) and not np.can_cast(value.dtype, field.dtype, casting="same_kind"):
+        raise DatasetError(f"{what}: dtype {value.dtype} does not convert safely to the field's {field.dtype}")
+    return value.astype(field.dtype, copy=False)
