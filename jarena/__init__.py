@@ -9,7 +9,7 @@ composable transforms; everything builds from a string::
 """
 
 from jarena import arenas as _arenas  # noqa: F401  (registers the built-in builders)
-from jarena import tasks, testing, tools
+from jarena import data, tasks, testing, tools
 from jarena.building import (
     ArenaStringError,
     build_arena,
@@ -30,6 +30,7 @@ from jarena.core.spec import Box, Discrete, SpecError
 from jarena.core.task import Task
 from jarena.core.tool import ActionTool
 from jarena.core.types import ArenaParams, ArenaState, Final, Info, Outcome, Transition
+from jarena.data import TrajectoryDataset, collect, make_buffer
 from jarena.runners import EvalResult, Trajectory, evaluate, perform_parallel, run, validate
 from jarena.training import TrainResult, train_and_evaluate
 
@@ -38,8 +39,8 @@ __version__ = "0.1.0"
 __all__ = [
     "ActionTool", "Agent", "Arena", "ArenaParams", "ArenaSpec", "ArenaState", "ArenaStringError", "Box",
     "Discrete", "Dynamics", "EvalResult", "Final", "Info", "Outcome", "Sensor", "SpecError", "Task",
-    "Trajectory", "Transition", "auto_reset", "batch_reset", "batch_step", "build_arena", "chain", "evaluate",
-    "list_arenas", "parse_arena_string", "perform_parallel", "register_arena_builder", "register_task",
-    "register_tool", "retrieve_config", "run", "spec", "tasks", "testing", "tools", "TrainResult", "train_and_evaluate",
-    "validate",
+    "TrainResult", "Trajectory", "TrajectoryDataset", "Transition", "auto_reset", "batch_reset", "batch_step",
+    "build_arena", "chain", "collect", "data", "evaluate", "list_arenas", "make_buffer", "parse_arena_string",
+    "perform_parallel", "register_arena_builder", "register_task", "register_tool", "retrieve_config", "run", "spec",
+    "tasks", "testing", "tools", "train_and_evaluate", "validate",
 ]
