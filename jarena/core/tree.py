@@ -26,3 +26,8 @@ def tree_where(pred: jax.Array, on_true: Any, on_false: Any) -> Any:
     ``pred`` has the leading (batch) shape of the leaves; PRNG key leaves are supported.
     """
     return jax.tree_util.tree_map(lambda a, b: _select(pred, a, b), on_true, on_false)
+
+
+def as_float32(tree):
+    """Every leaf of ``tree`` as a float32 array (params structs are declared with Python floats)."""
+    return jax.tree_util.tree_map(lambda v: jnp.asarray(v, jnp.float32), tree)

@@ -27,6 +27,7 @@ from jarena.arenas.domain import Domain
 from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Box, Dict, Discrete
 from jarena.core.task import Task
+from jarena.core.tree import as_float32
 
 
 @struct.dataclass
@@ -56,10 +57,6 @@ class AcrobotParams:
 @struct.dataclass
 class SwingupParams:
     height: jax.Array = 1.0  # goal: the tip's height above the pivot, in units of link length, exceeds this
-
-
-def _as_f32(tree):
-    return jax.tree_util.tree_map(lambda v: jnp.asarray(v, jnp.float32), tree)
 
 
 def init(key, params: AcrobotParams) -> AcrobotState:
@@ -128,11 +125,11 @@ def swingup() -> Task:
         return outcome.replace(reward=outcome.reward + jnp.where(done, 0.0, -1.0),
                                terminated=outcome.terminated | done, success=done), state
 
-    return Task(update=update, reset=reset, default_params=lambda: _as_f32(SwingupParams()), name="swingup")
+    return Task(update=update, reset=reset, default_params=lambda: as_float32(SwingupParams()), name="swingup")
 
 
 def dynamics() -> Dynamics:
-    return Dynamics(init=init, step=step, control_spec=Discrete(3), default_params=lambda: _as_f32(AcrobotParams()),
+    return Dynamics(init=init, step=step, control_spec=Discrete(3), default_params=lambda: as_float32(AcrobotParams()),
                     no_op=lambda: jnp.asarray(1, jnp.int32), timestep=0.2, name="acrobot")
 
 

@@ -22,6 +22,7 @@ from jarena.arenas.domain import Domain
 from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Box, Dict, Discrete
 from jarena.core.task import Task
+from jarena.core.tree import as_float32
 
 
 @struct.dataclass
@@ -47,10 +48,6 @@ class CartPoleParams:
 class BalanceParams:
     x_threshold: jax.Array = 2.4
     theta_threshold: jax.Array = 12 * 2 * math.pi / 360
-
-
-def _as_f32(tree):
-    return jax.tree_util.tree_map(lambda v: jnp.asarray(v, jnp.float32), tree)
 
 
 def init(key, params: CartPoleParams) -> CartPoleState:
@@ -95,12 +92,12 @@ def balance() -> Task:
         return outcome.replace(reward=outcome.reward + 1.0, terminated=outcome.terminated | terminated,
                                success=~terminated), state
 
-    return Task(update=update, reset=reset, default_params=lambda: _as_f32(BalanceParams()), name="balance")
+    return Task(update=update, reset=reset, default_params=lambda: as_float32(BalanceParams()), name="balance")
 
 
 def dynamics() -> Dynamics:
     return Dynamics(init=init, step=step, control_spec=Discrete(2),
-                    default_params=lambda: _as_f32(CartPoleParams()), timestep=0.02, name="cartpole")
+                    default_params=lambda: as_float32(CartPoleParams()), timestep=0.02, name="cartpole")
 
 
 def sensor() -> Sensor:

@@ -23,6 +23,7 @@ from jarena.arenas.domain import Domain
 from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Box, Dict
 from jarena.core.task import Task
+from jarena.core.tree import as_float32
 
 
 @struct.dataclass
@@ -50,10 +51,6 @@ class ContinuousParams:
     goal_velocity: jax.Array = 0.0
     goal_reward: jax.Array = 100.0
     action_cost: jax.Array = 0.1
-
-
-def _as_f32(tree):
-    return jax.tree_util.tree_map(lambda v: jnp.asarray(v, jnp.float32), tree)
 
 
 def init(key, params: MountainCarParams) -> MountainCarState:
@@ -93,12 +90,12 @@ def continuous() -> Task:
         return outcome.replace(reward=outcome.reward + reward, terminated=outcome.terminated | done,
                                success=done), state
 
-    return Task(update=update, reset=reset, default_params=lambda: _as_f32(ContinuousParams()), name="continuous")
+    return Task(update=update, reset=reset, default_params=lambda: as_float32(ContinuousParams()), name="continuous")
 
 
 def dynamics() -> Dynamics:
     return Dynamics(init=init, step=step, control_spec=Box(-1.0, 1.0, (1,), jnp.float32),
-                    default_params=lambda: _as_f32(MountainCarParams()), timestep=1.0, name="mountain_car")
+                    default_params=lambda: as_float32(MountainCarParams()), timestep=1.0, name="mountain_car")
 
 
 def sensor() -> Sensor:

@@ -26,6 +26,7 @@ from jarena.arenas.domain import Domain
 from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Box, Dict
 from jarena.core.task import Task
+from jarena.core.tree import as_float32
 
 
 @struct.dataclass
@@ -50,10 +51,6 @@ class PendulumParams:
 class SwingupParams:
     success_angle: jax.Array = 0.1
     success_speed: jax.Array = 1.0
-
-
-def _as_f32(tree):
-    return jax.tree_util.tree_map(lambda v: jnp.asarray(v, jnp.float32), tree)
 
 
 def angle_normalize(x):
@@ -102,12 +99,12 @@ def swingup() -> Task:
         return outcome.replace(reward=outcome.reward - costs, success=succeeded(physics, params),
                                metrics=dict(outcome.metrics, upright=jnp.cos(physics.theta))), state
 
-    return Task(update=update, reset=reset, default_params=lambda: _as_f32(SwingupParams()), name="swingup")
+    return Task(update=update, reset=reset, default_params=lambda: as_float32(SwingupParams()), name="swingup")
 
 
 def dynamics() -> Dynamics:
     return Dynamics(init=init, step=step, control_spec=Box(-2.0, 2.0, (1,), jnp.float32),
-                    default_params=lambda: _as_f32(PendulumParams()), timestep=0.05, name="pendulum")
+                    default_params=lambda: as_float32(PendulumParams()), timestep=0.05, name="pendulum")
 
 
 def sensor() -> Sensor:

@@ -26,6 +26,7 @@ from jarena.arenas.domain import Domain
 from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Box, Dict
 from jarena.core.task import Task
+from jarena.core.tree import as_float32
 from jarena.tasks.goal_reaching import goal_reaching
 
 
@@ -45,10 +46,6 @@ class PointMassParams:
     bound: jax.Array = 1.0  # the arena is [-bound, bound]^2
     init_position: jax.Array = 0.8  # position ~ U[-init_position, init_position]^2
     init_velocity: jax.Array = 0.0  # velocity ~ U[-init_velocity, init_velocity]^2
-
-
-def _as_f32(tree):
-    return jax.tree_util.tree_map(lambda v: jnp.asarray(v, jnp.float32), tree)
 
 
 def init(key, params: PointMassParams) -> PointMassState:
@@ -84,7 +81,7 @@ def reach(threshold: float = 0.05, reward: str = "dense") -> Task:
 
 def dynamics() -> Dynamics:
     return Dynamics(init=init, step=step, control_spec=Box(-1.0, 1.0, (2,), jnp.float32),
-                    default_params=lambda: _as_f32(PointMassParams()), timestep=0.05, name="point_mass")
+                    default_params=lambda: as_float32(PointMassParams()), timestep=0.05, name="point_mass")
 
 
 def sensor() -> Sensor:
