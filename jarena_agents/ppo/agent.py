@@ -26,6 +26,7 @@ from jarena_agents import networks, normalizer
 from jarena_agents.config import make_config
 from jarena_agents.ppo.losses import compute_gae, ppo_loss
 from jarena_agents.registry import register_agent
+from jarena_agents.trainable import TrainableAgent
 
 PyTree = Any
 
@@ -203,18 +204,10 @@ def make_ppo(config=None) -> Agent:
         return jax.lax.scan(lambda ts, _: one_update(arena, ts), train_state, None, length=num_updates)
 
     agent = Agent(name="ppo", init=init, act=act, config=dataclasses.asdict(cfg))
-    return PPOAgent(**{f.name: getattr(agent, f.name) for f in dataclasses.fields(Agent)},
-                    init_training=init_training, train=train, policy=policy, settings=cfg)
+    return TrainableAgent.wrap(agent, init_training=init_training, train=train, policy=policy, settings=cfg)
 
 
-@dataclasses.dataclass(frozen=True)
-class PPOAgent(Agent):
-    """A trainable agent: the agent protocol plus ``init_training``, ``train`` and ``policy``."""
-
-    init_training: Any = None
-    train: Any = None
-    policy: Any = None
-    settings: Any = dataclasses.field(default=None, compare=False, hash=False)
+PPOAgent = TrainableAgent  # kept for code written against the first release
 
 
 register_agent("ppo", make_ppo, tags=("trainable", "rl"))
