@@ -13,10 +13,8 @@ def test_save_and_load_round_trip_the_train_state(tmp_path):
     state, _ = jax.jit(agent.train, static_argnums=(1, 2))(state, arena, 2)
     agent.save(tmp_path / "ckpt", state, step=2)
     loaded = agent.load(tmp_path / "ckpt", arena)
-    same = jax.tree_util.tree_map(
-        lambda a, b: np.array_equal(jax.random.key_data(a) if jax.dtypes.issubdtype(a.dtype, jax.dtypes.prng_key)
-                                    else a, jax.random.key_data(b) if jax.dtypes.issubdtype(b.dtype, jax.dtypes.prng_key)
-                                    else b), state, loaded)
+    raw = lambda x: jax.random.key_data(x) if jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key) else x
+    same = jax.tree_util.tree_map(lambda a, b: np.array_equal(raw(a), raw(b)), state, loaded)
     assert all(jax.tree_util.tree_leaves(same))
     # continuing from the loaded state equals continuing from the original
     a, _ = jax.jit(agent.train, static_argnums=(1, 2))(state, arena, 1)
