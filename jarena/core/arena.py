@@ -44,6 +44,11 @@ class Arena:
       name: a file-system friendly name (``classic-cartpole-balance``), used to find configs.
       build_string: the string that builds this arena, when it came from :func:`jarena.build_arena`.
       num_val_episodes, num_eval_episodes: sizes of the fixed validation and evaluation splits.
+      lazy_reset: tells :func:`jarena.batch_step` to compute auto-resets only in steps where an arena of
+        the batch finished (one ``lax.cond`` over the batch), not for every arena at every step. Pays off
+        where resets are expensive and episodes end together (fixed-length MuJoCo episodes, a reset that
+        settles the physics for hundreds of steps); the default select-based reset is faster for cheap
+        resets and staggered episodes.
     """
 
     dynamics: Dynamics
@@ -54,6 +59,7 @@ class Arena:
     build_string: str | None = None
     num_val_episodes: int = 20
     num_eval_episodes: int = 100
+    lazy_reset: bool = False
 
     # ------------------------------------------------------------------ specs and params
     def default_params(self) -> ArenaParams:
@@ -135,6 +141,9 @@ class Arena:
         # The key that seeds the episodes after this one under auto-reset.
         rng = episodes_lib.piece_key(episode, 3) if key is None else jax.random.fold_in(key, 1)
         physics = self.dynamics.init(key_dynamics, params.dynamics)
+        physics = self.task.initialize(episodes_lib.piece_key(episode, 4), physics, params.dynamics, params.task)
+        if self.dynamics.after_reset is not None:
+            physics = self.dynamics.after_reset(physics, params.dynamics)
         outcome, task_state = self.task.reset(key_task, physics, Outcome.empty(), params.task)
         tool_state = self.tool.reset(key_tool, params.tool, self.dynamics.control_spec)
         state = ArenaState(physics=physics, task=task_state, tool=tool_state, step=jnp.zeros((), jnp.int32),

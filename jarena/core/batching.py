@@ -48,6 +48,12 @@ def auto_reset(arena: Arena, state: ArenaState, action: PyTree, params: ArenaPar
     """
     params = arena.default_params() if params is None else params
     next_state, info = arena.step(state, action, params)
+    return _start_new_episodes(arena, next_state, info, params)
+
+
+def _start_new_episodes(arena: Arena, next_state: ArenaState, info: Info, params: ArenaParams
+                        ) -> tuple[ArenaState, Info]:
+    """Replaces finished episodes (``info.done``) of one arena by new ones drawn from ``next_state.rng``."""
     new_state, new_info = arena.reset(next_state.rng.unpack(), params)
     done = info.done
     info = info.replace(observation=tree_where(done, new_info.observation, info.observation),
@@ -59,7 +65,17 @@ def auto_reset(arena: Arena, state: ArenaState, action: PyTree, params: ArenaPar
 
 def batch_step(arena: Arena, states: ArenaState, actions: PyTree, params: ArenaParams | None = None, *,
                params_axis: int | None = None, reset_done: bool = True) -> tuple[ArenaState, Info]:
-    """Steps a batch of arenas (leading axis B), auto-resetting finished episodes when ``reset_done``."""
+    """Steps a batch of arenas (leading axis B), auto-resetting finished episodes when ``reset_done``.
+
+    With ``arena.lazy_reset`` the resets are computed only in steps where some arena finished; the
+    result is the same.
+    """
     params = arena.default_params() if params is None else params
-    fn = (lambda s, a, p: auto_reset(arena, s, a, p)) if reset_done else arena.step
-    return jax.vmap(fn, in_axes=(0, 0, params_axis))(states, actions, params)
+    if not reset_done:
+        return jax.vmap(arena.step, in_axes=(0, 0, params_axis))(states, actions, params)
+    if not arena.lazy_reset:
+        step_and_reset = jax.vmap(lambda s, a, p: auto_reset(arena, s, a, p), in_axes=(0, 0, params_axis))
+        return step_and_reset(states, actions, params)
+    stepped = jax.vmap(arena.step, in_axes=(0, 0, params_axis))(states, actions, params)
+    restart = jax.vmap(lambda s, i, p: _start_new_episodes(arena, s, i, p), in_axes=(0, 0, params_axis))
+    return jax.lax.cond(jnp.any(stepped[1].done), lambda x: restart(*x, params), lambda x: x, stepped)

@@ -31,6 +31,8 @@ class Dynamics:
       timestep: seconds of simulated time per ``step``.
       render: optional host-side ``(physics, params, **kwargs) -> uint8 image (H, W, 3)``.
       name: a short name for messages.
+      after_reset: optional ``(physics, params) -> physics`` run after the task placed the initial state
+        (see ``Task.initialize``) to recompute derived quantities, as MuJoCo's ``mj_forward``.
     """
 
     init: Callable[[jax.Array, PyTree], PyTree]
@@ -41,6 +43,7 @@ class Dynamics:
     timestep: float = 1.0
     render: Callable[..., Any] | None = None
     name: str = "dynamics"
+    after_reset: Callable[[PyTree, PyTree], PyTree] | None = None
 
     def no_op_control(self) -> PyTree:
         return self.no_op() if self.no_op is not None else self.control_spec.zeros()

@@ -30,6 +30,10 @@ def _no_state_reset(key, physics, outcome, params):
     return outcome, ()
 
 
+def _keep_physics(key, physics, dynamics_params, params):
+    return physics
+
+
 @dataclasses.dataclass(frozen=True)
 class Task:
     """A task transform.
@@ -44,6 +48,10 @@ class Task:
       horizon: static upper bound on the number of dynamics steps in an episode (``None``: unbounded);
         runners use it to size their loops.
       name: a short name for messages.
+      initialize: ``(key, physics, dynamics_params, params) -> physics``; places the episode's initial
+        state (dm_control's ``initialize_episode``: a swing-up task starts the pole hanging down, a reach
+        task places its target). Runs on the dynamics' initial physics, before ``reset``; the default
+        keeps the physics as the dynamics made it.
     """
 
     update: Callable[[PyTree, Outcome, Transition, PyTree], tuple[Outcome, PyTree]]
@@ -51,6 +59,7 @@ class Task:
     default_params: Callable[[], PyTree] = _no_params
     horizon: int | None = None
     name: str = "task"
+    initialize: Callable[[jax.Array, PyTree, PyTree, PyTree], PyTree] = _keep_physics
 
     @staticmethod
     def chain(*tasks: Task) -> Task:
@@ -67,6 +76,11 @@ class Task:
                 states.append(s)
             return outcome, tuple(states)
 
+        def initialize(key, physics, dynamics_params, params):
+            for i, (task, p) in enumerate(zip(tasks, params, strict=True)):
+                physics = task.initialize(jax.random.fold_in(key, i), physics, dynamics_params, p)
+            return physics
+
         def update(states, outcome, transition, params):
             new_states = []
             for task, s, p in zip(tasks, states, params, strict=True):
@@ -75,7 +89,7 @@ class Task:
             return outcome, tuple(new_states)
 
         horizons = [t.horizon for t in tasks if t.horizon is not None]
-        return Task(update=update, reset=reset,
+        return Task(update=update, reset=reset, initialize=initialize,
                     default_params=lambda: tuple(t.default_params() for t in tasks),
                     horizon=min(horizons) if horizons else None,
                     name="chain(" + ", ".join(t.name for t in tasks) + ")")

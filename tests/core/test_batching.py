@@ -61,3 +61,25 @@ def test_auto_reset_episode_ids_do_not_repeat_or_lock_step():
         states, infos = step(states)
         seen |= set(np.asarray(infos.episode).tolist())
     assert len(seen) == 64 * 51
+
+
+def test_lazy_reset_gives_the_same_batch_as_select_reset():
+    import dataclasses
+
+    import numpy as np
+    arena = jarena.build_arena("classic|domain:cartpole,time_limit:20")
+    lazy = dataclasses.replace(arena, lazy_reset=True)
+
+    def rollout(a):
+        def body(carry, key):
+            states = carry
+            actions = jax.random.randint(key, (6,), 0, 2)
+            states, info = jarena.batch_step(a, states, actions)
+            return states, (info.observation["state"], info.done, info.episode, info.final.observation["state"])
+        states, _ = jarena.batch_reset(a, jax.random.key(0), 6)
+        return jax.lax.scan(body, states, jax.random.split(jax.random.key(1), 60))[1]
+
+    eager_out, lazy_out = jax.jit(lambda: rollout(arena))(), jax.jit(lambda: rollout(lazy))()
+    assert eager_out[1].any() and not eager_out[1].all()  # some steps restart episodes, some do not
+    for e, z in zip(eager_out, lazy_out, strict=True):
+        np.testing.assert_array_equal(e, z)

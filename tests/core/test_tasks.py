@@ -89,3 +89,26 @@ def test_chain_rejects_mixed_kinds():
         jarena.chain(time_limit(3), jarena.tools.repeat(2))
     with pytest.raises(ValueError):
         jarena.chain()
+
+
+def test_task_initialize_places_the_initial_state_and_chains_in_order():
+    import dataclasses
+    arena = jarena.build_arena("classic|domain:cartpole")
+    base = arena.task
+
+    def start_tilted(key, physics, dynamics_params, params):
+        return physics.replace(theta=physics.theta + 0.1)
+
+    def then_double(key, physics, dynamics_params, params):
+        return physics.replace(theta=physics.theta * 2.0, x=jax.random.uniform(key, ()))
+
+    tilted = dataclasses.replace(arena, task=jarena.chain(base, jarena.Task(update=lambda s, o, t, p: (o, s),
+                                                                             initialize=start_tilted),
+                                                          jarena.Task(update=lambda s, o, t, p: (o, s),
+                                                                      initialize=then_double)))
+    plain, _ = arena.reset(episode=3)
+    state, info = tilted.reset(episode=3)
+    assert jnp.allclose(state.physics.theta, (plain.physics.theta + 0.1) * 2.0)
+    assert info.observation["state"][2] == state.physics.theta  # observation sees the placed state
+    again, _ = jax.jit(lambda: tilted.reset(episode=3))()
+    assert again.physics.x == state.physics.x  # the initialize key is a function of the episode id
