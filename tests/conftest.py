@@ -2,6 +2,8 @@
 
 import os
 
+os.environ.setdefault("MUJOCO_GL", "egl")  # headless rendering; also keeps dm_control from probing X11
+
 from jarena.platform import avoid_cpu_eigen_deadlock
 
 avoid_cpu_eigen_deadlock(force=True)  # before JAX starts its CPU backend

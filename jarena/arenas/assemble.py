@@ -63,9 +63,9 @@ def assemble(builder: str, domains: Mapping[str, Domain], domain: str, task: Any
         extra["num_eval_episodes"] = int(eval_episodes)
     if val_episodes is not None:
         extra["num_val_episodes"] = int(val_episodes)
-    arena = Arena(dynamics=dynamics, sensor=dom.sensor(), task=chain(*tasks),
+    arena = Arena(dynamics=dynamics, sensor=dom.sensor_for(task_call.name), task=chain(*tasks),
                   tool=chain(*tools) if tools else Arena.tool, name=f"{builder}-{domain}-{task_call.name}",
-                  **extra)
+                  lazy_reset=dom.lazy_reset, **extra)
     try:
         _ = arena.action_spec  # tools check the spec they drive here, at build time
     except (TypeError, ValueError) as e:

@@ -22,6 +22,9 @@ class Domain:
       time_limit: default episode length in dynamics steps for every task of the domain.
       tool: ``() -> ActionTool`` applied by default (e.g. none for discrete control).
       tags: task name -> tags (e.g. ``("benchmark",)``).
+      sensors: task name -> ``() -> Sensor`` for tasks that observe more than the domain's sensor
+        (dm_control's observations are defined per task, e.g. finger turn adds its target).
+      lazy_reset: build arenas with ``Arena.lazy_reset`` (expensive resets, episodes that end together).
     """
 
     name: str
@@ -31,6 +34,11 @@ class Domain:
     time_limit: int | None = None
     tool: Callable[[], ActionTool] | None = None
     tags: Mapping[str, tuple[str, ...]] = dataclasses.field(default_factory=dict)
+    sensors: Mapping[str, Callable[[], Sensor]] = dataclasses.field(default_factory=dict)
+    lazy_reset: bool = False
+
+    def sensor_for(self, task: str) -> Sensor:
+        return self.sensors.get(task, self.sensor)()
 
     @property
     def default_task(self) -> str:

@@ -56,7 +56,7 @@ def _perturbed(params, factor: float):
         params)
 
 
-def check_jit_consistency(arena: Arena, key: jax.Array, steps: int = 5) -> None:
+def check_jit_consistency(arena: Arena, key: jax.Array, steps: int = 2) -> None:
     params = arena.default_params()
     s_eager, i_eager = arena.reset(key, params)
     s_jit, i_jit = jax.jit(arena.reset)(key, params)

@@ -1,0 +1,69 @@
+"""The DeepMind Control Suite on MJX, with each domain's dynamics shared by its tasks.
+
+Builder ``dmc``: ``dmc|domain:<domain>,task:<task>[,action:<tools>][,time_limit:N][,wrap:<tasks>]``.
+Observations, rewards, initial states and episode lengths follow ``dm_control.suite``; tests compare
+them with dm_control's own task code on the same physics states.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+from jarena.arenas.assemble import assemble
+from jarena.arenas.domain import Domain
+from jarena.building.builder import register_arena_builder
+from jarena.core.arena import Arena
+
+#: Domains and their tasks. Static, so that listing arenas does not import MuJoCo; each domain's
+#: module (``jarena.arenas.dmc.<domain>``) is imported when one of its arenas is built.
+SUITE: dict[str, tuple[str, ...]] = {
+    "cartpole": ("balance", "balance_sparse", "swingup", "swingup_sparse"),
+}
+
+#: Domains of the suite that MJX cannot simulate, and why (building them is a clear error).
+UNSUPPORTED: dict[str, str] = {}
+
+
+class _Domains(Mapping):
+    """``SUITE``'s domains, each imported on first use."""
+
+    def __getitem__(self, name: str) -> Domain:
+        if name not in SUITE:
+            raise KeyError(name)
+        return importlib.import_module(f"jarena.arenas.dmc.{name}").DOMAIN
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(SUITE)
+
+    def __len__(self) -> int:
+        return len(SUITE)
+
+
+DOMAINS: Mapping[str, Domain] = _Domains()
+
+
+def build(domain: str, task: Any = None, action: Any = None, time_limit: int | None = None, wrap: Any = None,
+          eval_episodes: int | None = None, val_episodes: int | None = None) -> Arena:
+    """Builds a DeepMind Control Suite arena on MJX.
+
+    Args:
+      domain: one of ``DOMAINS`` (cartpole, walker, ...).
+      task: a task of the domain (default: its first), e.g. ``walk``.
+      action: action tools in front of the actuators, e.g. ``repeat(2)``.
+      time_limit: episode length in control steps (default: the suite's, 1000 for most tasks).
+      wrap: task transforms after the time limit, e.g. ``reward_scale(0.1)``.
+      eval_episodes, val_episodes: sizes of the evaluation and validation splits.
+    """
+    if domain in UNSUPPORTED:
+        raise NotImplementedError(f"dmc domain {domain!r} cannot run on MJX: {UNSUPPORTED[domain]}")
+    return assemble("dmc", DOMAINS, domain, task, action, time_limit, wrap, eval_episodes, val_episodes)
+
+
+def variants() -> list[tuple[str, tuple[str, ...]]]:
+    """Every domain x task of the suite, tagged ``dmc``, ``mujoco`` and ``benchmark``."""
+    return [(f"dmc|domain:{d},task:{t}", ("dmc", "mujoco", "benchmark")) for d, tasks in SUITE.items() for t in tasks]
+
+
+register_arena_builder("dmc", build, variants=variants, tags=("dmc", "mujoco"))

@@ -1,0 +1,82 @@
+"""Shared pieces of the DeepMind Control Suite domains: models, physics reads, domain assembly.
+
+Models come from the ``dm_control`` package's suite assets, loaded when an arena is built (never at
+import). Every domain's dynamics step is one dm_control *control* step (``n_sub_steps`` physics steps),
+its tasks compute rewards on the state after the step, and episodes last ``time_limit`` seconds, as in
+``dm_control.rl.control.Environment``.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+from collections.abc import Callable
+
+import jax
+import mujoco
+from mujoco import mjx
+
+from jarena.arenas.dmc import randomizers
+from jarena.arenas.mjx.dynamics import Names, mjx_dynamics
+from jarena.core.dynamics import Dynamics
+
+#: MuJoCo features that MJX does not implement and that the suite's models use only for reporting.
+_MJX_UNUSED_FLAGS = (mujoco.mjtEnableBit.mjENBL_ENERGY,)
+
+
+def suite_xml(domain: str, *args) -> tuple[str, dict]:
+    """``(xml, assets)`` of ``dm_control.suite.<domain>.get_model_and_assets(*args)``."""
+    try:
+        module = importlib.import_module(f"dm_control.suite.{domain}")
+    except ImportError as e:
+        raise ImportError(f"the dmc arenas need dm_control's suite models: pip install 'dm-control==1.0.50' ({e})"
+                          ) from None
+    xml, assets = module.get_model_and_assets(*args)
+    return (xml.decode() if isinstance(xml, bytes) else xml), assets
+
+
+@functools.cache
+def load_model(domain: str, *args, edit: Callable[[str], str] | None = None) -> mujoco.MjModel:
+    """The suite's model of ``domain`` (cached), ready for MJX.
+
+    ``edit`` may rewrite the XML first (e.g. to turn a task's target into a mocap body so that its
+    per-episode position lives in the physics state). The energy flag, which MJX does not implement and
+    the suite's tasks never read, is switched off.
+    """
+    xml, assets = suite_xml(domain, *args)
+    if edit is not None:
+        xml = edit(xml)
+    model = mujoco.MjModel.from_xml_string(xml, assets)
+    for flag in _MJX_UNUSED_FLAGS:
+        model.opt.enableflags &= ~int(flag)
+    return model
+
+
+@functools.cache
+def domain_dynamics(domain: str, n_sub_steps: int, *args, edit: Callable[[str], str] | None = None) -> Dynamics:
+    """MJX dynamics of ``domain``'s model with a control step of ``n_sub_steps`` physics steps (cached)."""
+    from jarena.arenas.mjx.render import renderer_for
+    model = load_model(domain, *args, edit=edit)
+    return mjx_dynamics(model, n_sub_steps, name=f"dmc-{domain}", render=renderer_for(model))
+
+
+@functools.cache
+def names(domain: str, *args, edit: Callable[[str], str] | None = None) -> Names:
+    return Names(load_model(domain, *args, edit=edit))
+
+
+def steps(time_limit: float, control_timestep: float) -> int:
+    """Number of control steps in ``time_limit`` seconds (dm_control's step limit)."""
+    return int(round(time_limit / control_timestep))
+
+
+# ---------------------------------------------------------------- reads of the physics state (mjx.Data)
+def xmat_entry(data: mjx.Data, body: int | slice, entry: str) -> jax.Array:
+    """dm_control's ``named.data.xmat[body, 'zz']``: entry ``'xz'`` is row x, column z of the body frame."""
+    axes = "xyz"
+    return data.xmat[body, axes.index(entry[0]), axes.index(entry[1])]
+
+
+def randomize_limited_and_rotational_joints(key: jax.Array, model: mujoco.MjModel, qpos: jax.Array) -> jax.Array:
+    """See :func:`jarena.arenas.dmc.randomizers.randomize_limited_and_rotational_joints`."""
+    return randomizers.randomize_limited_and_rotational_joints(key, model, qpos)

@@ -1,0 +1,181 @@
+"""Dynamics from a MuJoCo model, stepped by MJX (MuJoCo in JAX).
+
+The physics state is an ``mjx.Data``. One ``step`` is one *control* step: the control is written to
+``data.ctrl`` and held for ``substeps`` physics steps of ``model.opt.timestep`` seconds each.
+
+Steps follow dm_control's convention: after a step, position- and velocity-dependent quantities
+(``xpos``, ``xmat``, ``site_xpos``, sensors, contacts...) agree with the new ``qpos``/``qvel``, so tasks
+and sensors read a consistent state. Each physics step runs the second half of MuJoCo's pipeline
+(actuation, acceleration, constraint solve, integration) and then the first half for the new state
+(kinematics, collisions, velocity terms): the same work as one ``mjx.step``, in a different order.
+
+Physical parameters live in :class:`MjxParams` (scales applied to the model inside ``step``), so users
+vmap over them for domain randomisation per episode.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from flax import struct
+from mujoco import mjx
+
+from jarena.core.dynamics import Dynamics
+from jarena.core.spec import Box
+from jarena.core.tree import as_float32
+
+
+@struct.dataclass
+class MjxParams:
+    """Scales of physical constants (1 = the model's own values); vmap over them to randomise.
+
+    Attributes:
+      mass_scale: multiplies every body's mass and rotational inertia (uniform density change).
+      friction_scale: multiplies every geom's sliding, torsional and rolling friction.
+      damping_scale: multiplies every degree of freedom's joint damping.
+      gain_scale: multiplies every actuator's gain (and the matching bias terms of position and
+        velocity servos), i.e. the force per unit of control.
+    """
+
+    mass_scale: jax.Array = 1.0
+    friction_scale: jax.Array = 1.0
+    damping_scale: jax.Array = 1.0
+    gain_scale: jax.Array = 1.0
+
+
+def apply_params(model: mjx.Model, params: MjxParams) -> mjx.Model:
+    """``model`` with ``params``' scales applied (traceable; batched params give a batched model)."""
+    return model.replace(
+        body_mass=model.body_mass * params.mass_scale,
+        body_inertia=model.body_inertia * params.mass_scale,
+        geom_friction=model.geom_friction * params.friction_scale,
+        dof_damping=model.dof_damping * params.damping_scale,
+        actuator_gainprm=model.actuator_gainprm.at[:, 0].multiply(params.gain_scale),
+        actuator_biasprm=model.actuator_biasprm.at[:, 1:3].multiply(params.gain_scale),
+    )
+
+
+def _integrate(m: mjx.Model, d: mjx.Data) -> mjx.Data:
+    """The second half of a physics step from a position/velocity-consistent state (``mj_step2``)."""
+    d = mjx.fwd_actuation(m, d)
+    d = mjx.fwd_acceleration(m, d)
+    if d._impl.efc_J.size == 0:  # no constraints: as mjx.forward does
+        d = d.replace(qacc=d.qacc_smooth)
+    else:
+        d = mjx.solve(m, d)
+        d = mjx.sensor_acc(m, d)
+    integrator = mujoco.mjtIntegrator(int(m.opt.integrator))
+    if integrator == mujoco.mjtIntegrator.mjINT_EULER:
+        return mjx.euler(m, d)
+    if integrator == mujoco.mjtIntegrator.mjINT_RK4:
+        return mjx.rungekutta4(m, d)
+    if integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST:
+        return mjx.implicit(m, d)
+    raise NotImplementedError(f"MJX does not implement the {integrator.name} integrator")
+
+
+def _observe_state(m: mjx.Model, d: mjx.Data) -> mjx.Data:
+    """The first half of a physics step (``mj_step1``): quantities that depend on qpos and qvel."""
+    d = mjx.fwd_position(m, d)
+    d = mjx.sensor_pos(m, d)
+    d = mjx.fwd_velocity(m, d)
+    return mjx.sensor_vel(m, d)
+
+
+def physics_step(m: mjx.Model, d: mjx.Data) -> mjx.Data:
+    """One physics step of ``m.opt.timestep`` seconds from, and to, a consistent state."""
+    return _observe_state(m, _integrate(m, d))
+
+
+def control_spec(model: mujoco.MjModel) -> Box:
+    """A Box over the actuators' control ranges (unbounded for actuators without ``ctrllimited``)."""
+    limited = np.asarray(model.actuator_ctrllimited, bool)
+    low = np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf)
+    high = np.where(limited, model.actuator_ctrlrange[:, 1], np.inf)
+    return Box(low.astype(np.float32), high.astype(np.float32), dtype=jnp.float32)
+
+
+def mjx_dynamics(model: mujoco.MjModel, substeps: int = 1, name: str = "mjx",
+                 render: Callable | None = None) -> Dynamics:
+    """Dynamics of ``model`` on MJX, with a control step of ``substeps`` physics steps.
+
+    ``init`` gives MuJoCo's reset state (``qpos0``, zero velocity) and ``after_reset`` runs
+    ``mjx.forward`` after the task placed the initial state, as dm_control's ``reset_context``.
+    Controls outside ``ctrlrange`` are clamped by MuJoCo; ``data.ctrl`` keeps the value given.
+    """
+    if substeps < 1:
+        raise ValueError(f"substeps must be >= 1, got {substeps}")
+    try:
+        device_model = mjx.put_model(model)
+    except NotImplementedError as e:
+        raise NotImplementedError(f"MJX cannot run model {name!r}: {e}") from None
+
+    def init(key, params):
+        return mjx.make_data(device_model)
+
+    def after_reset(data, params):
+        return mjx.forward(apply_params(device_model, params), data)
+
+    def step(data, control, params):
+        m = apply_params(device_model, params)
+        data = data.replace(ctrl=jnp.asarray(control, data.ctrl.dtype))
+        if substeps == 1:
+            return physics_step(m, data)
+        return jax.lax.fori_loop(0, substeps, lambda _, d: physics_step(m, d), data)
+
+    return Dynamics(init=init, step=step, control_spec=control_spec(model),
+                    default_params=lambda: as_float32(MjxParams()),
+                    timestep=float(model.opt.timestep) * substeps, render=render, name=name,
+                    after_reset=after_reset)
+
+
+@dataclasses.dataclass(frozen=True)
+class Names:
+    """Name -> index lookups in a MuJoCo model, resolved at build time (static Python ints).
+
+    Unknown names raise a ``KeyError`` that lists the model's names of that kind.
+    """
+
+    model: mujoco.MjModel
+
+    def _id(self, kind: mujoco.mjtObj, name: str) -> int:
+        i = mujoco.mj_name2id(self.model, kind, name)
+        if i < 0:
+            count = {mujoco.mjtObj.mjOBJ_BODY: self.model.nbody, mujoco.mjtObj.mjOBJ_JOINT: self.model.njnt,
+                     mujoco.mjtObj.mjOBJ_GEOM: self.model.ngeom, mujoco.mjtObj.mjOBJ_SITE: self.model.nsite,
+                     mujoco.mjtObj.mjOBJ_ACTUATOR: self.model.nu, mujoco.mjtObj.mjOBJ_SENSOR: self.model.nsensor
+                     }.get(kind, 0)
+            valid = [mujoco.mj_id2name(self.model, kind, j) for j in range(count)]
+            raise KeyError(f"model has no {kind.name[6:].lower()} named {name!r}; it has {valid}")
+        return i
+
+    def body(self, name: str) -> int:
+        return self._id(mujoco.mjtObj.mjOBJ_BODY, name)
+
+    def geom(self, name: str) -> int:
+        return self._id(mujoco.mjtObj.mjOBJ_GEOM, name)
+
+    def site(self, name: str) -> int:
+        return self._id(mujoco.mjtObj.mjOBJ_SITE, name)
+
+    def joint(self, name: str) -> int:
+        return self._id(mujoco.mjtObj.mjOBJ_JOINT, name)
+
+    def qpos(self, joint: str) -> int:
+        """Address of ``joint``'s first coordinate in ``qpos``."""
+        return int(self.model.jnt_qposadr[self.joint(joint)])
+
+    def qvel(self, joint: str) -> int:
+        """Address of ``joint``'s first degree of freedom in ``qvel``."""
+        return int(self.model.jnt_dofadr[self.joint(joint)])
+
+    def sensor(self, name: str) -> slice:
+        """Slice of ``sensordata`` holding sensor ``name``."""
+        i = self._id(mujoco.mjtObj.mjOBJ_SENSOR, name)
+        start = int(self.model.sensor_adr[i])
+        return slice(start, start + int(self.model.sensor_dim[i]))
