@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import functools
 import importlib
+import importlib.util
 from collections.abc import Callable
+from pathlib import Path
 
 import jax
 import mujoco
@@ -24,15 +26,32 @@ from jarena.core.dynamics import Dynamics
 _MJX_UNUSED_FLAGS = (mujoco.mjtEnableBit.mjENBL_ENERGY,)
 
 
+_COMMON_ASSETS = ("./common/materials.xml", "./common/skybox.xml", "./common/visual.xml")
+
+
+def suite_dir() -> Path:
+    """The directory of dm_control's suite files (found without importing dm_control)."""
+    spec = importlib.util.find_spec("dm_control")
+    if spec is None or not spec.submodule_search_locations:
+        raise ImportError("the dmc arenas need dm_control's suite models: pip install 'dm-control==1.0.50'")
+    return Path(next(iter(spec.submodule_search_locations))) / "suite"
+
+
 def suite_xml(domain: str, *args) -> tuple[str, dict]:
-    """``(xml, assets)`` of ``dm_control.suite.<domain>.get_model_and_assets(*args)``."""
-    try:
+    """``(xml, assets)`` of the suite's ``domain``, as ``dm_control.suite.<domain>.get_model_and_assets(*args)``.
+
+    Plain models are read from their XML files, so only dm_control's model files need be present;
+    generated models (``args`` given, e.g. a swimmer's number of links) use the suite's own code.
+    """
+    if args:
         module = importlib.import_module(f"dm_control.suite.{domain}")
-    except ImportError as e:
-        raise ImportError(f"the dmc arenas need dm_control's suite models: pip install 'dm-control==1.0.50' ({e})"
-                          ) from None
-    xml, assets = module.get_model_and_assets(*args)
-    return (xml.decode() if isinstance(xml, bytes) else xml), assets
+        xml, assets = module.get_model_and_assets(*args)
+        return (xml.decode() if isinstance(xml, bytes) else xml), assets
+    root = suite_dir()
+    path = root / f"{domain}.xml"
+    if not path.exists():
+        raise FileNotFoundError(f"dm_control has no suite model {path.name} (in {root})")
+    return path.read_text(), {name: (root / name).read_bytes() for name in _COMMON_ASSETS}
 
 
 @functools.cache
