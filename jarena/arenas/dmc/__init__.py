@@ -7,6 +7,7 @@ them with dm_control's own task code on the same physics states.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from collections.abc import Iterator, Mapping
 from typing import Any
@@ -45,7 +46,8 @@ DOMAINS: Mapping[str, Domain] = _Domains()
 
 
 def build(domain: str, task: Any = None, action: Any = None, time_limit: int | None = None, wrap: Any = None,
-          eval_episodes: int | None = None, val_episodes: int | None = None) -> Arena:
+          eval_episodes: int | None = None, val_episodes: int | None = None, iterations: int | None = None,
+          ls_iterations: int | None = None) -> Arena:
     """Builds a DeepMind Control Suite arena on MJX.
 
     Args:
@@ -55,10 +57,18 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
       time_limit: episode length in control steps (default: the suite's, 1000 for most tasks).
       wrap: task transforms after the time limit, e.g. ``reward_scale(0.1)``.
       eval_episodes, val_episodes: sizes of the evaluation and validation splits.
+      iterations, ls_iterations: constraint-solver iteration limits (default: the suite model's);
+        fewer is faster on MJX and less exact in contacts (see ``common.with_solver``).
     """
     if domain in UNSUPPORTED:
         raise NotImplementedError(f"dmc domain {domain!r} cannot run on MJX: {UNSUPPORTED[domain]}")
-    return assemble("dmc", DOMAINS, domain, task, action, time_limit, wrap, eval_episodes, val_episodes)
+    domains = DOMAINS
+    if (iterations is not None or ls_iterations is not None) and domain in SUITE:
+        from jarena.arenas.dmc import common
+        dom = DOMAINS[domain]
+        dynamics = common.with_solver(dom.dynamics(), iterations, ls_iterations)
+        domains = {domain: dataclasses.replace(dom, dynamics=lambda: dynamics)}
+    return assemble("dmc", domains, domain, task, action, time_limit, wrap, eval_episodes, val_episodes)
 
 
 def variants() -> list[tuple[str, tuple[str, ...]]]:

@@ -8,6 +8,7 @@ its tasks compute rewards on the state after the step, and episodes last ``time_
 
 from __future__ import annotations
 
+import copy
 import functools
 import importlib
 import importlib.util
@@ -99,3 +100,22 @@ def xmat_entry(data: mjx.Data, body: int | slice, entry: str) -> jax.Array:
 def randomize_limited_and_rotational_joints(key: jax.Array, model: mujoco.MjModel, qpos: jax.Array) -> jax.Array:
     """See :func:`jarena.arenas.dmc.randomizers.randomize_limited_and_rotational_joints`."""
     return randomizers.randomize_limited_and_rotational_joints(key, model, qpos)
+
+
+@functools.cache
+def with_solver(dynamics: Dynamics, iterations: int | None = None, ls_iterations: int | None = None) -> Dynamics:
+    """``dynamics`` with the constraint solver's iteration limits changed (cached).
+
+    The suite's models allow 100 solver and 50 line-search iterations; MJX stops early at the solver's
+    tolerance, but batched arenas wait for the slowest. Fewer iterations (mujoco_playground uses 1-4 and
+    4-8) trade contact accuracy for speed.
+    """
+    from jarena.arenas.mjx.render import renderer_for
+    model = copy.copy(dynamics.render.model)
+    for name, value in (("iterations", iterations), ("ls_iterations", ls_iterations)):
+        if value is not None:
+            if not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+            setattr(model.opt, name, value)
+    substeps = int(round(dynamics.timestep / float(model.opt.timestep)))
+    return mjx_dynamics(model, substeps, name=dynamics.name, render=renderer_for(model))
