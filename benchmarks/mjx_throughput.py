@@ -1,0 +1,270 @@
+"""Env-steps per second of MuJoCo arenas on MJX, against raw ``mjx.step``, Brax and MuJoCo Playground.
+
+For each environment and batch size B, every variant runs ``--steps`` control steps of B environments
+with uniformly random actions in [-1, 1] inside one jitted ``lax.scan``; compilation is timed apart
+(``lower(...).compile()``) and a warm-up call precedes the timed ones, which are interleaved across
+variants so that load changes weigh on all alike. Variants:
+
+- ``raw``: ``jax.vmap`` of ``n_sub_steps`` ``mjx.step`` calls on the same MuJoCo model as ours, with the
+  action written to ``ctrl``: physics only (no observation, reward, termination or reset).
+- ``ours``: ``jarena.batch_step``: the full arena step (observation, reward, time limit, auto-reset).
+- ``ours-fewer-iters`` (dmc only): ours built with the constraint-solver iteration limits of
+  Playground's version of the model (``iterations``/``ls_iterations`` build options): the same solver
+  budget as the ``playground`` variant.
+- ``playground``: mujoco_playground's equivalent environment on MJX (``impl="jax"``, not Warp), with
+  its Brax-training wrapper (episode length 1000, auto-reset), as Playground's trainers step it.
+- ``brax``: Brax's environment (``backend="mjx"``) with ``brax.envs.training.wrap`` (episode length
+  1000, auto-reset).
+
+Usage (GPU)::
+
+    python benchmarks/mjx_throughput.py --envs cartpole-balance,walker-walk --batch-sizes 1024,8192,32768
+    python benchmarks/mjx_throughput.py --out benchmarks/mjx_results.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import statistics
+import sys
+import time
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+
+try:
+    import jarena
+except ImportError:  # run from a checkout without installing
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    import jarena
+
+from mujoco import mjx  # noqa: E402
+
+ENVS = {
+    "cartpole-balance": {"ours": "dmc|domain:cartpole,task:balance", "playground": "CartpoleBalance"},
+    "walker-walk": {"ours": "dmc|domain:walker,task:walk", "playground": "WalkerWalk"},
+    "cheetah-run": {"ours": "dmc|domain:cheetah,task:run", "playground": "CheetahRun"},
+    "humanoid-walk": {"ours": "dmc|domain:humanoid,task:walk", "playground": "HumanoidWalk"},
+    "ant": {"ours": "brax|env:ant,backend:mjx", "brax": "ant"},
+}
+VARIANTS = ("raw", "ours", "ours-fewer-iters", "playground", "brax")
+
+
+def _random_actions(key, t, batch, dim):
+    return jax.random.uniform(jax.random.fold_in(key, t), (batch, dim), minval=-1.0, maxval=1.0)
+
+
+# ---------------------------------------------------------------------------------------------- loops
+# Each factory returns (init, body): init(key) -> carry (not timed); body(carry, t) -> carry.
+
+
+def _playground_env(name: str):
+    from mujoco_playground import registry
+    return registry.load(name, config_overrides={"impl": "jax"})
+
+
+def _brax_env(name: str):
+    import brax.envs
+    return brax.envs.get_environment(name, backend="mjx")
+
+
+def ours_loop(arena_string: str, batch: int):
+    arena = jarena.build_arena(arena_string)
+    params = arena.default_params()
+    dim = arena.action_spec.shape[0]
+
+    def init(key):
+        states, _ = jarena.batch_reset(arena, key, batch, params)
+        return states, key
+
+    def body(carry, t):
+        states, key = carry
+        states, _ = jarena.batch_step(arena, states, _random_actions(key, t, batch, dim), params)
+        return states, key
+
+    return init, body
+
+
+def raw_loop(env: str, batch: int):
+    """``mjx.step`` on the model our arena uses, ``n_sub_steps`` times per control step."""
+    if "brax" in ENVS[env]:
+        benv = _brax_env(ENVS[env]["brax"])
+        model, substeps = benv.sys.mj_model, int(benv._n_frames)
+    else:
+        arena = jarena.build_arena(ENVS[env]["ours"])
+        model = arena.dynamics.render.model
+        substeps = int(round(arena.dynamics.timestep / model.opt.timestep))
+    m = mjx.put_model(model)
+    dim = model.nu
+
+    def init(key):
+        d = mjx.forward(m, mjx.make_data(m))
+        return jax.tree_util.tree_map(lambda x: jnp.broadcast_to(x, (batch,) + x.shape), d), key
+
+    def physics(d, u):
+        d = d.replace(ctrl=u)
+        return jax.lax.fori_loop(0, substeps, lambda _, d: mjx.step(m, d), d)
+
+    def body(carry, t):
+        data, key = carry
+        return jax.vmap(physics)(data, _random_actions(key, t, batch, dim)), key
+
+    return init, body
+
+
+def playground_loop(env: str, batch: int):
+    from mujoco_playground import wrapper
+    penv = _playground_env(ENVS[env]["playground"])
+    wrapped = wrapper.wrap_for_brax_training(penv, episode_length=1000, action_repeat=1)
+    dim = penv.action_size
+
+    def init(key):
+        return wrapped.reset(jax.random.key_data(jax.random.split(key, batch))), key  # raw uint32 keys
+
+    def body(carry, t):
+        state, key = carry
+        return wrapped.step(state, _random_actions(key, t, batch, dim)), key
+
+    return init, body
+
+
+def brax_loop(env: str, batch: int):
+    from brax.envs import training
+    benv = _brax_env(ENVS[env]["brax"])
+    wrapped = training.wrap(benv, episode_length=1000, action_repeat=1)
+    dim = benv.action_size
+
+    def init(key):
+        return wrapped.reset(jax.random.key_data(jax.random.split(key, batch))), key  # raw uint32 keys
+
+    def body(carry, t):
+        state, key = carry
+        return wrapped.step(state, _random_actions(key, t, batch, dim)), key
+
+    return init, body
+
+
+def fewer_iters_loop(env: str, batch: int):
+    model = _playground_env(ENVS[env]["playground"]).mj_model
+    string = f"{ENVS[env]['ours']},iterations:{model.opt.iterations},ls_iterations:{model.opt.ls_iterations}"
+    return ours_loop(string, batch)
+
+
+def make_loop(variant: str, env: str, batch: int) -> tuple[Callable, Callable]:
+    if variant == "ours":
+        return ours_loop(ENVS[env]["ours"], batch)
+    return {"raw": raw_loop, "playground": playground_loop, "brax": brax_loop,
+            "ours-fewer-iters": fewer_iters_loop}[variant](env, batch)
+
+
+def applicable(variant: str, env: str) -> bool:
+    if variant in ("playground", "ours-fewer-iters"):
+        return "playground" in ENVS[env]
+    if variant == "brax":
+        return "brax" in ENVS[env]
+    return True
+
+
+# ---------------------------------------------------------------------------------------------- timing
+
+
+def compile_variant(variant: str, env: str, batch: int, steps: int) -> dict:
+    init, body = make_loop(variant, env, batch)
+
+    def run(carry):
+        return jax.lax.scan(lambda c, t: (body(c, t), None), carry, jnp.arange(steps, dtype=jnp.int32))[0]
+
+    carry = jax.block_until_ready(jax.jit(init)(jax.random.key(0)))
+    t0 = time.perf_counter()
+    compiled = jax.jit(run).lower(carry).compile()
+    compile_s = time.perf_counter() - t0
+    jax.block_until_ready(compiled(carry))  # warm-up
+    return {"compiled": compiled, "carry": carry, "compile_s": compile_s}
+
+
+def time_env(env: str, variants: list[str], batch: int, steps: int, repeats: int) -> list[dict]:
+    progs, rows = {}, []
+    for v in variants:
+        if not applicable(v, env):
+            continue
+        try:
+            progs[v] = compile_variant(v, env, batch, steps)
+        except Exception as e:  # a peer that fails to build is reported, not fatal
+            rows.append({"env": env, "variant": v, "batch": batch, "error": f"{type(e).__name__}: {e}"[:300]})
+            print(f"  {env} {v} B={batch}: {rows[-1]['error']}", flush=True)
+    times = {v: [] for v in progs}
+    for _ in range(repeats):
+        for v, p in progs.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(p["compiled"](p["carry"]))
+            times[v].append(time.perf_counter() - t0)
+    for v in progs:
+        best, median = min(times[v]), statistics.median(times[v])
+        rows.append({"env": env, "variant": v, "batch": batch, "steps": steps, "compile_s": progs[v]["compile_s"],
+                     "best_s": best, "median_s": median, "steps_per_s": batch * steps / best})
+    return rows
+
+
+def table(rows: list[dict]) -> str:
+    """Markdown: steps/s per variant, and ours' ratios to raw, Playground and Brax."""
+    out = ["| env | B | variant | env-steps/s | compile s | ours / this |", "|---|---:|---|---:|---:|---:|"]
+    ok = [r for r in rows if "error" not in r]
+    for r in ok:
+        ours = next((o for o in ok if o["env"] == r["env"] and o["batch"] == r["batch"] and o["variant"] == "ours"),
+                    None)
+        ratio = "" if ours is None or r["variant"] == "ours" else f"{ours['steps_per_s'] / r['steps_per_s']:.2f}"
+        out.append(f"| {r['env']} | {r['batch']} | {r['variant']} | {r['steps_per_s']:.3g} | {r['compile_s']:.1f} "
+                   f"| {ratio} |")
+    for r in rows:
+        if "error" in r:
+            out.append(f"| {r['env']} | {r['batch']} | {r['variant']} | error: {r['error'][:80]} | | |")
+    return "\n".join(out)
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--envs", default=",".join(ENVS), help=f"comma-separated subset of {', '.join(ENVS)}")
+    parser.add_argument("--variants", default=",".join(VARIANTS), help=f"subset of {', '.join(VARIANTS)}")
+    parser.add_argument("--batch-sizes", default=None, help="comma-separated (default: 1024,8192,32768 on GPU, 16 "
+                        "on CPU)")
+    parser.add_argument("--steps", type=int, default=None, help="control steps per timed call (default: 100 GPU, "
+                        "5 CPU)")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--out", default=None, help="write rows and machine info as JSON here")
+    args = parser.parse_args(argv)
+    gpu = jax.default_backend() != "cpu"
+    batches = [int(b) for b in (args.batch_sizes or ("1024,8192,32768" if gpu else "16")).split(",")]
+    steps = args.steps or (100 if gpu else 5)
+    envs, variants = args.envs.split(","), args.variants.split(",")
+    for e in envs:
+        if e not in ENVS:
+            parser.error(f"unknown env {e!r}; choose from {', '.join(ENVS)}")
+    for v in variants:
+        if v not in VARIANTS:
+            parser.error(f"unknown variant {v!r}; choose from {', '.join(VARIANTS)}")
+    device = str(jax.devices()[0].device_kind)
+    print(f"# MJX throughput on {device} ({jax.default_backend()}), jax {jax.__version__}, steps={steps}", flush=True)
+    rows = []
+    for env in envs:
+        for b in batches:
+            new = time_env(env, variants, b, steps, args.repeats)
+            rows += new
+            for r in new:
+                if "error" not in r:
+                    print(f"  {env:16s} B={b:6d} {r['variant']:17s} {r['steps_per_s']:12.4g} steps/s "
+                          f"(compile {r['compile_s']:.1f} s)", flush=True)
+    print(table(rows))
+    if args.out:
+        with open(args.out, "w") as f:
+            json.dump({"device": device, "backend": jax.default_backend(), "jax": jax.__version__,
+                       "python": platform.python_version(), "date": datetime.date.today().isoformat(),
+                       "steps": steps, "rows": rows}, f, indent=2)
+
+
+if __name__ == "__main__":
+    main()
