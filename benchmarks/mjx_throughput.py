@@ -8,9 +8,10 @@ variants so that load changes weigh on all alike. Variants:
 - ``raw``: ``jax.vmap`` of ``n_sub_steps`` ``mjx.step`` calls on the same MuJoCo model as ours, with the
   action written to ``ctrl``: physics only (no observation, reward, termination or reset).
 - ``ours``: ``jarena.batch_step``: the full arena step (observation, reward, time limit, auto-reset).
-- ``ours-fewer-iters`` (dmc only): ours built with the constraint-solver iteration limits of
-  Playground's version of the model (``iterations``/``ls_iterations`` build options): the same solver
-  budget as the ``playground`` variant.
+- ``ours-pg-options`` (dmc only): ours built with the simulation options of Playground's version of the
+  model (build options ``iterations``, ``ls_iterations``, ``integrator``, ``eulerdamp``): Playground
+  trades the suite's accuracy for speed (1-4 solver iterations, Euler instead of RK4, no implicit
+  damping); this variant does the same physics work as the ``playground`` variant.
 - ``playground``: mujoco_playground's equivalent environment on MJX (``impl="jax"``, not Warp), with
   its Brax-training wrapper (episode length 1000, auto-reset), as Playground's trainers step it.
 - ``brax``: Brax's environment (``backend="mjx"``) with ``brax.envs.training.wrap`` (episode length
@@ -45,6 +46,8 @@ except ImportError:  # run from a checkout without installing
 
 from mujoco import mjx  # noqa: E402
 
+import jarena.arenas.dmc.common  # noqa: E402
+
 ENVS = {
     "cartpole-balance": {"ours": "dmc|domain:cartpole,task:balance", "playground": "CartpoleBalance"},
     "walker-walk": {"ours": "dmc|domain:walker,task:walk", "playground": "WalkerWalk"},
@@ -52,7 +55,7 @@ ENVS = {
     "humanoid-walk": {"ours": "dmc|domain:humanoid,task:walk", "playground": "HumanoidWalk"},
     "ant": {"ours": "brax|env:ant,backend:mjx", "brax": "ant"},
 }
-VARIANTS = ("raw", "ours", "ours-fewer-iters", "playground", "brax")
+VARIANTS = ("raw", "ours", "ours-pg-options", "playground", "brax")
 
 
 def _random_actions(key, t, batch, dim):
@@ -149,21 +152,29 @@ def brax_loop(env: str, batch: int):
     return init, body
 
 
-def fewer_iters_loop(env: str, batch: int):
+def playground_options(env: str) -> str:
+    """Build options that give our arena the simulation options of Playground's model of ``env``."""
+    import mujoco
     model = _playground_env(ENVS[env]["playground"]).mj_model
-    string = f"{ENVS[env]['ours']},iterations:{model.opt.iterations},ls_iterations:{model.opt.ls_iterations}"
-    return ours_loop(string, batch)
+    integrator = {int(v): k for k, v in jarena.arenas.dmc.common.INTEGRATORS.items()}[int(model.opt.integrator)]
+    eulerdamp = not (model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP))
+    return (f"iterations:{model.opt.iterations},ls_iterations:{model.opt.ls_iterations},integrator:{integrator},"
+            f"eulerdamp:{str(eulerdamp).lower()}")
+
+
+def fewer_iters_loop(env: str, batch: int):
+    return ours_loop(f"{ENVS[env]['ours']},{playground_options(env)}", batch)
 
 
 def make_loop(variant: str, env: str, batch: int) -> tuple[Callable, Callable]:
     if variant == "ours":
         return ours_loop(ENVS[env]["ours"], batch)
     return {"raw": raw_loop, "playground": playground_loop, "brax": brax_loop,
-            "ours-fewer-iters": fewer_iters_loop}[variant](env, batch)
+            "ours-pg-options": fewer_iters_loop}[variant](env, batch)
 
 
 def applicable(variant: str, env: str) -> bool:
-    if variant in ("playground", "ours-fewer-iters"):
+    if variant in ("playground", "ours-pg-options"):
         return "playground" in ENVS[env]
     if variant == "brax":
         return "brax" in ENVS[env]

@@ -47,7 +47,7 @@ DOMAINS: Mapping[str, Domain] = _Domains()
 
 def build(domain: str, task: Any = None, action: Any = None, time_limit: int | None = None, wrap: Any = None,
           eval_episodes: int | None = None, val_episodes: int | None = None, iterations: int | None = None,
-          ls_iterations: int | None = None) -> Arena:
+          ls_iterations: int | None = None, integrator: str | None = None, eulerdamp: bool | None = None) -> Arena:
     """Builds a DeepMind Control Suite arena on MJX.
 
     Args:
@@ -57,16 +57,18 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
       time_limit: episode length in control steps (default: the suite's, 1000 for most tasks).
       wrap: task transforms after the time limit, e.g. ``reward_scale(0.1)``.
       eval_episodes, val_episodes: sizes of the evaluation and validation splits.
-      iterations, ls_iterations: constraint-solver iteration limits (default: the suite model's);
-        fewer is faster on MJX and less exact in contacts (see ``common.with_solver``).
+      iterations, ls_iterations, integrator, eulerdamp: MuJoCo simulation options (default: the suite
+        model's): fewer solver iterations, ``integrator:euler`` and ``eulerdamp:false`` are faster on
+        MJX and less exact, as mujoco_playground's models (see ``common.with_options``).
     """
     if domain in UNSUPPORTED:
         raise NotImplementedError(f"dmc domain {domain!r} cannot run on MJX: {UNSUPPORTED[domain]}")
     domains = DOMAINS
-    if (iterations is not None or ls_iterations is not None) and domain in SUITE:
+    options = (iterations, ls_iterations, integrator, eulerdamp)
+    if any(o is not None for o in options) and domain in SUITE:
         from jarena.arenas.dmc import common
         dom = DOMAINS[domain]
-        dynamics = common.with_solver(dom.dynamics(), iterations, ls_iterations)
+        dynamics = common.with_options(dom.dynamics(), *options)
         domains = {domain: dataclasses.replace(dom, dynamics=lambda: dynamics)}
     return assemble("dmc", domains, domain, task, action, time_limit, wrap, eval_episodes, val_episodes)
 

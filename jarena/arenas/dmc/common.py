@@ -102,20 +102,36 @@ def randomize_limited_and_rotational_joints(key: jax.Array, model: mujoco.MjMode
     return randomizers.randomize_limited_and_rotational_joints(key, model, qpos)
 
 
-@functools.cache
-def with_solver(dynamics: Dynamics, iterations: int | None = None, ls_iterations: int | None = None) -> Dynamics:
-    """``dynamics`` with the constraint solver's iteration limits changed (cached).
+INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "rk4": mujoco.mjtIntegrator.mjINT_RK4,
+               "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST}
 
-    The suite's models allow 100 solver and 50 line-search iterations; MJX stops early at the solver's
-    tolerance, but batched arenas wait for the slowest. Fewer iterations (mujoco_playground uses 1-4 and
-    4-8) trade contact accuracy for speed.
+
+@functools.cache
+def with_options(dynamics: Dynamics, iterations: int | None = None, ls_iterations: int | None = None,
+                 integrator: str | None = None, eulerdamp: bool | None = None) -> Dynamics:
+    """``dynamics`` with MuJoCo simulation options changed (cached); ``None`` keeps the model's value.
+
+    The suite's models allow 100 solver and 50 line-search iterations (MJX stops early at the solver's
+    tolerance, but a batch waits for its slowest arena); some use RK4 and implicit Euler damping.
+    mujoco_playground's versions of these models use 1-4 solver iterations, Euler and no Euler damping:
+    faster on MJX, less exact. Args: ``iterations`` and ``ls_iterations`` (positive ints),
+    ``integrator`` (one of ``INTEGRATORS``), ``eulerdamp`` (implicit joint damping in Euler steps).
     """
     from jarena.arenas.mjx.render import renderer_for
     model = copy.copy(dynamics.render.model)
     for name, value in (("iterations", iterations), ("ls_iterations", ls_iterations)):
         if value is not None:
-            if not isinstance(value, int) or value < 1:
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise ValueError(f"{name} must be a positive integer, got {value!r}")
             setattr(model.opt, name, value)
+    if integrator is not None:
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"unknown integrator {integrator!r}; MJX runs {', '.join(INTEGRATORS)}")
+        model.opt.integrator = int(INTEGRATORS[integrator])
+    if eulerdamp is not None:
+        if not isinstance(eulerdamp, bool):
+            raise ValueError(f"eulerdamp must be true or false, got {eulerdamp!r}")
+        bit = int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
+        model.opt.disableflags = (model.opt.disableflags & ~bit) if eulerdamp else (model.opt.disableflags | bit)
     substeps = int(round(dynamics.timestep / float(model.opt.timestep)))
     return mjx_dynamics(model, substeps, name=dynamics.name, render=renderer_for(model))

@@ -1,3 +1,4 @@
+import mujoco
 import pytest
 
 import jarena
@@ -29,3 +30,9 @@ def test_solver_iterations_are_a_build_option():
     assert fast.dynamics.timestep == pytest.approx(0.01)
     with pytest.raises(ValueError, match="iterations must be a positive integer"):
         jarena.build_arena("dmc|domain:cartpole,task:balance,iterations:0")
+    euler = jarena.build_arena("dmc|domain:cartpole,task:balance,integrator:euler,eulerdamp:false")
+    model = euler.dynamics.render.model
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+    assert model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
+    with pytest.raises(ValueError, match="unknown integrator 'rk5'; MJX runs euler, rk4, implicitfast"):
+        jarena.build_arena("dmc|domain:cartpole,task:balance,integrator:rk5")
