@@ -4,6 +4,8 @@
     jarena train ppo "classic|domain:cartpole" --run-dir runs/ppo-cartpole
     jarena evaluate oracle_cartpole "classic|domain:cartpole,task:balance"
     jarena evaluate random "classic|domain:pendulum" --split val --set key=value
+    jarena collect oracle_pendulum "classic|domain:pendulum,task:swingup" --out demos/pendulum --trajectories 100
+    jarena train bc "classic|domain:pendulum,task:swingup" --set dataset=demos/pendulum
 """
 
 from __future__ import annotations
@@ -111,8 +113,10 @@ def _cmd_train(args) -> int:
     if args.steps is not None:
         config["total_steps"] = args.steps
     agent = jarena_agents.build_agent(args.agent, config)
-    steps = agent.settings.total_steps if getattr(agent, "settings", None) is not None else args.steps
-    print(f"training {agent.name!r} on {args.arena!r} for {steps} environment steps "
+    settings = getattr(agent, "settings", None)
+    steps = settings.total_steps if settings is not None else args.steps
+    unit = getattr(settings, "step_unit", "environment steps")  # bc: gradient updates
+    print(f"training {agent.name!r} on {args.arena!r} for {steps} {unit} "
           f"on {jax.devices()[0].platform} (seed {args.seed})", flush=True)
     result = train_and_evaluate(agent, arena, jax.random.key(args.seed), run_dir=args.run_dir,
                                 progress=not args.no_progress)
@@ -123,6 +127,51 @@ def _cmd_train(args) -> int:
     if args.run_dir:
         print(f"run directory: {args.run_dir} (config, train.csv, validation.csv, evaluation.json, "
               "learning_curve.png)")
+    return 0
+
+
+def _cmd_collect(args) -> int:
+    import jax
+    import numpy as np
+
+    import jarena
+    import jarena_agents
+    from jarena.data.dataset import TrajectoryDataset
+
+    if args.trajectories < 1:
+        raise ValueError(f"--trajectories must be at least 1, got {args.trajectories}")
+    if args.batch is not None and args.batch < 1:
+        raise ValueError(f"--batch must be at least 1, got {args.batch}")
+    if args.append and args.overwrite:
+        raise ValueError("--append and --overwrite exclude each other: add to the dataset, or replace it")
+    arena = jarena.build_arena(args.arena)
+    config = jarena.retrieve_config(args.agent, arena, args.config)
+    config.update(dict(args.set or []))
+    agent = jarena_agents.build_agent(args.agent, config)
+    exists = Path(args.out, "zarr.json").is_file()
+    if exists and not (args.append or args.overwrite):
+        held = TrajectoryDataset(args.out).num_trajectories()
+        raise ValueError(f"{args.out} already holds a dataset ({held} trajectories); pass --append to add to it "
+                         "or --overwrite to replace it")
+    with TrajectoryDataset(args.out, "a" if args.append else "w", **jarena.data.configs_for(arena)) as dataset:
+        before = dataset.num_trajectories()
+        num_arenas = args.batch or min(args.trajectories, 64)
+        print(f"collecting {args.trajectories} trajectories of {agent.name!r} on {args.arena!r} into {args.out} "
+              f"({num_arenas} arenas in parallel on {jax.devices()[0].platform}, seed {args.seed})", flush=True)
+        start = time.perf_counter()
+        # Appending folds the trajectories already there into the key, so each run adds new episodes.
+        stored = jarena.collect(agent, arena, dataset, args.trajectories, key=jax.random.fold_in(
+            jax.random.key(args.seed), before), num_arenas=num_arenas, progress=not args.no_progress)
+        seconds = time.perf_counter() - start
+        lengths = dataset.lengths()
+        first_step = int(lengths[:stored[0]].sum())
+        new = lengths[stored[0]:]
+        rewards = dataset.rows("step/reward", first_step, first_step + int(new.sum())).astype(np.float64)
+        returns = np.add.reduceat(rewards, np.concatenate([[0], np.cumsum(new)[:-1]]))
+        print(f"stored {len(stored)} trajectories ({int(new.sum())} transitions) in {seconds:.1f} s: return "
+              f"{returns.mean():.2f} +- {returns.std():.2f} (mean +- std), length {new.mean():.1f}")
+        print(f"dataset {args.out}: {dataset.num_trajectories()} trajectories, {dataset.num_steps()} transitions")
+    print(f'clone it with: jarena train bc "{args.arena}" --set dataset={args.out}')
     return 0
 
 
@@ -138,7 +187,9 @@ def build_parser() -> argparse.ArgumentParser:
                        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("agent", help="trainable agent name (e.g. ppo)")
     p.add_argument("arena", help='arena string, e.g. "classic|domain:cartpole"')
-    p.add_argument("--steps", type=int, default=None, help="environment steps (default: the config's total_steps)")
+    p.add_argument("--steps", type=int, default=None,
+                   help="environment steps, or gradient updates for agents that learn from a dataset such as bc "
+                        "(default: the config's total_steps)")
     p.add_argument("--seed", type=int, default=0, help="seed of the whole run")
     p.add_argument("--run-dir", default=None, help="write logs, results and a learning-curve plot here")
     p.add_argument("--config", default="default", help="config name under configs/<agent>/<arena>/")
@@ -161,6 +212,35 @@ def build_parser() -> argparse.ArgumentParser:
                    help="evaluate the latest checkpoint of a training run directory")
     p.add_argument("--json", default=None, help="also write the summary and per-episode results to this file")
     p.set_defaults(fn=_cmd_evaluate)
+
+    p = sub.add_parser(
+        "collect", help="run an agent on an arena and store its finished episodes in a trajectory dataset",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Runs AGENT (e.g. a scripted oracle) on a batch of ARENA's training episodes, stores the first\n"
+                    "N to finish (observations, actions, rewards) in a zarr TrajectoryDataset at PATH and prints\n"
+                    "their mean return. Read it with jarena.TrajectoryDataset(PATH).",
+        epilog="example (oracle demonstrations, then behaviour cloning on them):\n"
+               '  jarena collect oracle_pendulum "classic|domain:pendulum,task:swingup" --out demos/pendulum '
+               "--trajectories 100\n"
+               '  jarena train bc "classic|domain:pendulum,task:swingup" --set dataset=demos/pendulum')
+    p.add_argument("agent", help="agent name, see `jarena list` (e.g. oracle_pendulum, oracle_cartpole)")
+    p.add_argument("arena", help='arena string, e.g. "classic|domain:pendulum,task:swingup"')
+    p.add_argument("--out", required=True, metavar="PATH", help="dataset directory")
+    p.add_argument("--trajectories", type=int, required=True, metavar="N", help="finished episodes to store")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the episodes and the agent (default: 0; with --append it is combined with the "
+                        "number of trajectories already stored, so each run adds new episodes)")
+    p.add_argument("--config", default="default",
+                   help="agent config name under configs/<agent>/<arena>/ (default: default)")
+    p.add_argument("--set", action="append", type=_parse_override, metavar="KEY=VALUE",
+                   help="override a config key of the agent (repeatable)")
+    p.add_argument("--batch", type=int, default=None, metavar="B",
+                   help="arenas run in parallel (default: min(N, 64))")
+    p.add_argument("--append", action="store_true",
+                   help="add to the dataset at PATH (its configs must match the arena's) instead of creating one")
+    p.add_argument("--overwrite", action="store_true", help="replace a dataset already at PATH")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(fn=_cmd_collect)
     return parser
 
 

@@ -1,5 +1,7 @@
 import json
 
+import pytest
+
 from jarena.cli import main
 
 
@@ -38,3 +40,67 @@ def test_train_prints_progress_and_table(capsys, tmp_path):
     assert "restored checkpoint" in out and trained in out  # the run's config and policy, same eval episodes
     assert main(["evaluate", "ppo", "classic|domain:cartpole", "--checkpoint", str(tmp_path / "nothing")]) == 2
     assert "no checkpoint found" in capsys.readouterr().err
+
+
+PENDULUM = "classic|domain:pendulum,task:swingup"
+
+
+def test_collect_then_train_and_evaluate_bc(capsys, tmp_path):
+    import re
+
+    import numpy as np
+
+    from jarena.data import TrajectoryDataset
+
+    out_dir = str(tmp_path / "demos")
+    assert main(["collect", "oracle_pendulum", PENDULUM, "--out", out_dir, "--trajectories", "4", "--batch", "2",
+                 "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "stored 4 trajectories (800 transitions)" in out and f"--set dataset={out_dir}" in out
+    printed = float(re.search(r"return (-?[\d.]+) \+-", out).group(1))
+    first = [float(t["reward"].sum()) for t in TrajectoryDataset(out_dir)]
+    assert printed == pytest.approx(np.mean(first), abs=0.01)
+
+    assert main(["collect", "oracle_pendulum", PENDULUM, "--out", out_dir, "--trajectories", "2"]) == 2
+    assert "already holds a dataset (4 trajectories); pass --append" in capsys.readouterr().err
+    assert main(["collect", "oracle_pendulum", PENDULUM, "--out", out_dir, "--trajectories", "2", "--append",
+                 "--no-progress"]) == 0
+    assert "dataset " + out_dir + ": 6 trajectories, 1200 transitions" in capsys.readouterr().out
+    dataset = TrajectoryDataset(out_dir)
+    added = dataset.get_trajectory(4)["observation"]["state"][0]
+    assert not any(np.allclose(added, t["observation"]["state"][0]) for t in list(dataset)[:4])  # new episodes
+
+    run = str(tmp_path / "run")
+    assert main(["train", "bc", PENDULUM, "--set", f"dataset={out_dir}", "--set", "hidden=[16]", "--steps", "40",
+                 "--no-progress", "--run-dir", run]) == 0
+    out = capsys.readouterr().out
+    assert "for 40 gradient updates" in out and "| return" in out
+    trained = out[out.index("| return"):].split("\n")[0]
+    assert main(["evaluate", "bc", PENDULUM, "--checkpoint", run]) == 0
+    out = capsys.readouterr().out
+    assert "restored checkpoint" in out and trained in out
+
+
+def test_collect_and_bc_errors_are_reported(capsys, tmp_path):
+    out_dir = str(tmp_path / "demos")
+    assert main(["collect", "random", PENDULUM, "--out", out_dir, "--trajectories", "0"]) == 2
+    assert "--trajectories must be at least 1" in capsys.readouterr().err
+    assert main(["collect", "random", PENDULUM, "--out", out_dir, "--trajectories", "1", "--append",
+                 "--overwrite"]) == 2
+    assert "exclude each other" in capsys.readouterr().err
+    assert main(["collect", "random", PENDULUM, "--out", out_dir, "--trajectories", "1", "--no-progress"]) == 0
+    capsys.readouterr()
+    assert main(["collect", "random", "classic|domain:cartpole", "--out", out_dir, "--trajectories", "1",
+                 "--append"]) == 2
+    assert "config mismatch on append" in capsys.readouterr().err
+    assert main(["train", "bc", PENDULUM, "--steps", "10", "--no-progress"]) == 2
+    assert "bc needs demonstrations: set its config key dataset=PATH" in capsys.readouterr().err
+
+
+def test_collect_help_names_every_option(capsys):
+    with pytest.raises(SystemExit):
+        main(["collect", "--help"])
+    out = capsys.readouterr().out
+    for option in ["--out", "--trajectories", "--seed", "--config", "--set", "--batch", "--append", "--overwrite"]:
+        assert option in out
+    assert "jarena train bc" in out

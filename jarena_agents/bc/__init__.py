@@ -1,0 +1,1 @@
+"""Behaviour cloning: a trainable agent that imitates the demonstrations in a TrajectoryDataset."""
