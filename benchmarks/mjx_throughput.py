@@ -14,6 +14,8 @@ variants so that load changes weigh on all alike. Variants:
   damping); this variant does the same physics work as the ``playground`` variant.
 - ``playground``: mujoco_playground's equivalent environment on MJX (``impl="jax"``, not Warp), with
   its Brax-training wrapper (episode length 1000, auto-reset), as Playground's trainers step it.
+- ``ours-noreset`` and ``ours-select`` (diagnostics): the arena step without auto-reset, and with the
+  select-based auto-reset (a reset computed for every arena at every step) instead of the lazy one.
 - ``brax``: Brax's environment (``backend="mjx"``) with ``brax.envs.training.wrap`` (episode length
   1000, auto-reset).
 
@@ -26,6 +28,7 @@ Usage (GPU)::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import json
 import os
@@ -55,7 +58,7 @@ ENVS = {
     "humanoid-walk": {"ours": "dmc|domain:humanoid,task:walk", "playground": "HumanoidWalk"},
     "ant": {"ours": "brax|env:ant,backend:mjx", "brax": "ant"},
 }
-VARIANTS = ("raw", "ours", "ours-pg-options", "playground", "brax")
+VARIANTS = ("raw", "ours", "ours-pg-options", "playground", "brax", "ours-noreset", "ours-select")
 
 
 def _random_actions(key, t, batch, dim):
@@ -76,8 +79,9 @@ def _brax_env(name: str):
     return brax.envs.get_environment(name, backend="mjx")
 
 
-def ours_loop(arena_string: str, batch: int):
+def ours_loop(arena_string: str, batch: int, reset: str = "lazy"):
     arena = jarena.build_arena(arena_string)
+    arena = dataclasses.replace(arena, lazy_reset=(reset == "lazy"))
     params = arena.default_params()
     dim = arena.action_spec.shape[0]
 
@@ -87,7 +91,8 @@ def ours_loop(arena_string: str, batch: int):
 
     def body(carry, t):
         states, key = carry
-        states, _ = jarena.batch_step(arena, states, _random_actions(key, t, batch, dim), params)
+        states, _ = jarena.batch_step(arena, states, _random_actions(key, t, batch, dim), params,
+                                      reset_done=(reset != "none"))
         return states, key
 
     return init, body
@@ -169,6 +174,8 @@ def fewer_iters_loop(env: str, batch: int):
 def make_loop(variant: str, env: str, batch: int) -> tuple[Callable, Callable]:
     if variant == "ours":
         return ours_loop(ENVS[env]["ours"], batch)
+    if variant in ("ours-noreset", "ours-select"):
+        return ours_loop(ENVS[env]["ours"], batch, reset=variant[5:].replace("noreset", "none"))
     return {"raw": raw_loop, "playground": playground_loop, "brax": brax_loop,
             "ours-pg-options": fewer_iters_loop}[variant](env, batch)
 
