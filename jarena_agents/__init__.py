@@ -10,6 +10,7 @@ from jarena_agents.bc import agent as _bc  # noqa: F401
 from jarena_agents.config import ConfigError, make_config
 from jarena_agents.ppo import agent as _ppo  # noqa: F401
 from jarena_agents.registry import AGENTS, build_agent, list_agents, register_agent
+from jarena_agents.sac import agent as _sac  # noqa: F401
 from jarena_agents.trainable import TrainableAgent
 
 __all__ = ["AGENTS", "Agent", "ConfigError", "build_agent", "list_agents", "make_config", "register_agent",
