@@ -19,7 +19,7 @@ from flax import struct
 
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
-from jarena_agents.config import ConfigError
+from jarena_agents.config import ConfigError, make_config
 from jarena_agents.planners.model import Model, arena_model
 from jarena_agents.planners.sampling import WARM_STARTS, initial_plan, shift_plan, warm_start_fill
 
@@ -138,8 +138,6 @@ def make_planner(name: str, config_cls: type, improve_factory: Callable[[Model, 
                  arena: Arena | None, model: Model | None, check: Callable[[Any, str], None] | None = None
                  ) -> Agent:
     """Builds the planner ``name``: typed config, model binding, checks, the agent."""
-    from jarena_agents.config import make_config
-
     cfg = make_config(config_cls, config, agent=name)
     check_config(cfg, name)
     if check is not None:

@@ -8,7 +8,7 @@ import pytest
 import jarena
 import jarena_agents
 from jarena_agents import ConfigError
-from jarena_agents.planners import make_mppi, make_predictive_sampling
+from jarena_agents.planners import arena_model, make_mppi, make_predictive_sampling
 from jarena_agents.planners.mppi import MPPIConfig, mppi_improve
 from jarena_agents.planners.sampling import shift_plan
 
@@ -65,8 +65,6 @@ def test_mppi_act_applies_the_improved_plan_per_arena(arena):
     state = agent.init(jax.random.key(0), arena.spec, 3)
     key = jax.random.key(7)
     action, next_state = jax.jit(agent.act)(state, info, key, arena.privileged(arena_state))
-    from jarena_agents.planners.model import arena_model
-
     improve = mppi_improve(arena_model(arena), MPPIConfig(**config))
     plans = jax.jit(jax.vmap(improve))(arena_state, state.plan, jax.random.split(key, 3))
     np.testing.assert_allclose(action, plans[:, 0], rtol=1e-5, atol=1e-6)
