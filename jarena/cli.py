@@ -42,6 +42,27 @@ def _cmd_list(args) -> int:
     return 0
 
 
+def _agent_config(args, arena) -> dict:
+    """The agent's config for ``arena`` (``--config``), with ``--set`` overrides applied by the caller.
+
+    Planners plan with the arena they act in: their config's ``arena`` is the evaluated arena's string,
+    and on arenas without a tuned config they run on their built-in defaults.
+    """
+    import jarena
+    import jarena_agents
+
+    planner = args.agent in jarena_agents.list_agents("planner")
+    try:
+        config = jarena.retrieve_config(args.agent, arena, args.config)
+    except FileNotFoundError:
+        if not (planner and args.config == "default"):
+            raise
+        config = {}
+    if planner:
+        config["arena"] = args.arena
+    return config
+
+
 def _cmd_evaluate(args) -> int:
     import jax
 
@@ -49,7 +70,7 @@ def _cmd_evaluate(args) -> int:
     import jarena_agents
 
     arena = jarena.build_arena(args.arena)
-    config = jarena.retrieve_config(args.agent, arena, args.config)
+    config = _agent_config(args, arena)
     saved = Path(args.checkpoint or "", "config.json")
     if args.checkpoint and saved.is_file():
         config = json.loads(saved.read_text()).get("config") or config  # the config the run trained with
@@ -108,7 +129,7 @@ def _cmd_train(args) -> int:
     from jarena.training import train_and_evaluate
 
     arena = jarena.build_arena(args.arena)
-    config = jarena.retrieve_config(args.agent, arena, args.config)
+    config = _agent_config(args, arena)
     config.update(dict(args.set or []))
     if args.steps is not None:
         config["total_steps"] = args.steps
@@ -145,7 +166,7 @@ def _cmd_collect(args) -> int:
     if args.append and args.overwrite:
         raise ValueError("--append and --overwrite exclude each other: add to the dataset, or replace it")
     arena = jarena.build_arena(args.arena)
-    config = jarena.retrieve_config(args.agent, arena, args.config)
+    config = _agent_config(args, arena)
     config.update(dict(args.set or []))
     agent = jarena_agents.build_agent(args.agent, config)
     exists = Path(args.out, "zarr.json").is_file()

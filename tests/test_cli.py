@@ -104,3 +104,11 @@ def test_collect_help_names_every_option(capsys):
     for option in ["--out", "--trajectories", "--seed", "--config", "--set", "--batch", "--append", "--overwrite"]:
         assert option in out
     assert "jarena train bc" in out
+
+
+def test_planners_plan_in_the_arena_they_are_evaluated_on(capsys):
+    """No tuned config for point_mass: the planner runs on its defaults and models the evaluated arena."""
+    assert main(["evaluate", "mppi", "classic|domain:point_mass,time_limit:40", "--episodes", "2",
+                 "--set", "samples=16", "--set", "horizon=5"]) == 0
+    out = capsys.readouterr().out
+    assert "point_mass" in out and "success rate" in out
