@@ -79,21 +79,26 @@ def _indices(indices: int | Sequence[int] | None, size: int) -> np.ndarray:
     return idx
 
 
-def _take(tree: PyTree, idx, time_major: bool, stride: int, stop: int | None) -> PyTree:
-    """Arenas ``idx`` of a batch (B, ...), or of a trajectory (T, B, ...) also cut to ``[:stop:stride]``."""
+def _take(tree: PyTree, idx, time_major: bool, stride: int) -> PyTree:
+    """Arenas ``idx`` of a batch (B, ...), or of a trajectory (T, B, ...) every ``stride``-th step."""
     if time_major:
-        return jax.tree_util.tree_map(lambda x: x[:stop:stride][:, idx], tree)
+        return jax.tree_util.tree_map(lambda x: x[::stride][:, idx], tree)
     return jax.tree_util.tree_map(lambda x: x[idx], tree)
 
 
-_take_on_device = jax.jit(_take, static_argnums=(2, 3, 4))  # one gather program for the whole tree
+_take_on_device = jax.jit(_take, static_argnums=(2, 3))  # one gather program for the whole tree
 
 
 def _to_host(tree: PyTree, idx: np.ndarray, time_major: bool, stride: int = 1, stop: int | None = None) -> PyTree:
-    """The selected slices, gathered where the states live and then copied to the host."""
+    """The selected arenas, gathered where the states live and then copied to the host; for trajectories,
+    states ``[:stop:stride]`` (the cut happens on the host: one compiled gather serves all lengths)."""
     if any(isinstance(x, jax.Array) for x in jax.tree_util.tree_leaves(tree)):
-        return jax.device_get(_take_on_device(tree, idx, time_major, stride, stop))
-    return _take(tree, idx, time_major, stride, stop)
+        host = jax.device_get(_take_on_device(tree, idx, time_major, stride))
+    else:
+        host = _take(tree, idx, time_major, stride)
+    if time_major and stop is not None:
+        host = jax.tree_util.tree_map(lambda x: x[: -(-stop // stride)], host)
+    return host
 
 
 def _host_params(arena: Arena, params: ArenaParams | None, params_axis: int | None, idx: np.ndarray) -> list:
