@@ -6,6 +6,7 @@
     jarena evaluate random "classic|domain:pendulum" --split val --set key=value
     jarena collect oracle_pendulum "classic|domain:pendulum,task:swingup" --out demos/pendulum --trajectories 100
     jarena train bc "classic|domain:pendulum,task:swingup" --set dataset=demos/pendulum
+    jarena render random "classic|domain:pendulum" --out pendulum.mp4 --episode 0 1 2 3
 """
 
 from __future__ import annotations
@@ -196,6 +197,34 @@ def _cmd_collect(args) -> int:
     return 0
 
 
+def _cmd_render(args) -> int:
+    import jax
+
+    import jarena
+    import jarena_agents
+    from jarena.render import record_video, renderer
+
+    arena = jarena.build_arena(args.arena)
+    renderer(arena)  # a clear error before the agent is built
+    config = _agent_config(args, arena)
+    saved = Path(args.checkpoint or "", "config.json")
+    if args.checkpoint and saved.is_file():
+        config = json.loads(saved.read_text()).get("config") or config  # the config the run trained with
+    config.update(dict(args.set or []))
+    agent = jarena_agents.build_agent(args.agent, config)
+    agent_state = _restore_policy(agent, arena, args.checkpoint) if args.checkpoint else None
+    camera = int(args.camera) if args.camera.lstrip("-").isdigit() else args.camera
+    print(f"filming {agent.name!r} on {args.arena!r}, episode(s) {args.episode} ...", flush=True)
+    start = time.perf_counter()
+    rec = record_video(agent, arena, args.out, args.episode, key=jax.random.key(args.seed), agent_state=agent_state,
+                       width=args.width, height=args.height, camera=camera, max_steps=args.max_steps, fps=args.fps,
+                       format=args.format)
+    returns = ", ".join(f"{r:.2f}" for r in rec.result.returns)
+    print(f"wrote {rec.path}: {rec.frames} frames at {rec.fps:g} fps, {rec.path.stat().st_size / 1024:.0f} KiB "
+          f"in {time.perf_counter() - start:.1f} s (compile included); episode return(s) {returns}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="jarena", description="JAX-native arenas and agents.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -262,6 +291,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace a dataset already at PATH")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(fn=_cmd_collect)
+    p = sub.add_parser("render", help="film an agent's episodes in an arena and write an MP4 or GIF video",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("agent", help="agent name, see `jarena list`")
+    p.add_argument("arena", help='arena string, e.g. "classic|domain:pendulum" (its dynamics must render)')
+    p.add_argument("--out", required=True, help="video file, .mp4 or .gif (no suffix: --format's)")
+    p.add_argument("--episode", type=int, nargs="+", default=[0],
+                   help="episode id(s), 0.. are the eval split's; several are tiled into a grid")
+    p.add_argument("--seed", type=int, default=0, help="seed of the agent's randomness")
+    p.add_argument("--config", default="default", help="config name under configs/<agent>/<arena>/")
+    p.add_argument("--set", action="append", type=_parse_override, metavar="KEY=VALUE",
+                   help="override a config key (repeatable)")
+    p.add_argument("--checkpoint", default=None, metavar="RUN_DIR",
+                   help="film the latest checkpoint of a training run directory")
+    p.add_argument("--width", type=int, default=320, help="frame width in pixels (per episode)")
+    p.add_argument("--height", type=int, default=240, help="frame height in pixels (per episode)")
+    p.add_argument("--camera", default="-1", help="MuJoCo camera name or id (-1: free camera)")
+    p.add_argument("--format", default=None, choices=["mp4", "gif"], help="video format (default: --out's suffix)")
+    p.add_argument("--max-steps", type=int, default=None, help="step cap (default: the arena's episode length)")
+    p.add_argument("--fps", type=float, default=None, help="playback rate (default: real time)")
+    p.set_defaults(fn=_cmd_render)
     return parser
 
 

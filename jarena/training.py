@@ -47,7 +47,8 @@ def _check_trainable(agent) -> None:
 def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int | None = None,
                        chunk_updates: int | None = None, validate_every: int | None = None,
                        checkpoint_every: int | None = None, run_dir: str | Path | None = None,
-                       progress: bool = True, stop_after_chunks: int | None = None) -> TrainResult:
+                       progress: bool = True, stop_after_chunks: int | None = None, eval_videos: int = 2
+                       ) -> TrainResult:
     """Trains ``agent`` on ``arena``, validating periodically, and evaluates it on the eval episodes.
 
     Args:
@@ -61,10 +62,14 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
         ``run_dir/checkpoints``; a run restarted in the same directory resumes from the latest one and
         continues bit for bit.
       run_dir: if given, writes ``config.json``, ``train.csv``, ``validation.csv``, TensorBoard event
-        files (``tensorboard/``), ``evaluation.json`` and ``learning_curve.png`` there.
+        files (``tensorboard/``), ``evaluation.json``, ``learning_curve.png`` and videos there.
       progress: show a progress bar with steps per second, current return and ETA.
       stop_after_chunks: stop (without evaluating) after this many chunks in this call, as an
         interruption would; returns ``evaluation=None``. For tests and time-sliced jobs.
+      eval_videos: with ``run_dir``, film the first this many eval episodes of the final evaluation into
+        ``run_dir/videos/eval_episode_<i>.mp4`` (320 x 240, real time, at most 50 fps). The evaluation keeps
+        their physics states on device and renders them on the host afterwards; its results are the
+        same as without. Skipped (silently) when the arena's dynamics have no renderer; 0 disables.
     """
     _check_trainable(agent)
     settings = agent.settings
@@ -135,7 +140,13 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
         checkpointer.close()
     if writer is not None:
         writer.close()
-    evaluation = evaluate(agent, arena, jax.random.key(0), agent_state=agent.policy(train_state, arena.spec, True))
+    videos = 0
+    if run_path is not None and eval_videos:
+        from jarena.render.frames import can_render
+
+        videos = min(int(eval_videos), arena.num_eval_episodes) if can_render(arena) else 0
+    evaluation = evaluate(agent, arena, jax.random.key(0), agent_state=agent.policy(train_state, arena.spec, True),
+                          videos=videos, video_dir=run_path / "videos" if videos else None)
     if run_path is not None:
         _write_csv(run_path / "train.csv", history)
         _write_csv(run_path / "validation.csv", validations)

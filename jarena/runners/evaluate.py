@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -20,37 +21,84 @@ PyTree = Any
 
 
 @functools.lru_cache(maxsize=64)
-def _compiled_episodes(agent: Agent, arena: Arena, num: int, max_steps: int, params_axis: int | None):
-    """A jitted ``(key, agent_state, params, ids) -> per-episode arrays`` for ``num`` episodes."""
+def _compiled_episodes(agent: Agent, arena: Arena, num: int, max_steps: int, params_axis: int | None,
+                       filmed: int = 0):
+    """A jitted ``(key, agent_state, params, ids) -> per-episode arrays`` for ``num`` episodes.
+
+    With ``filmed > 0`` it also keeps the physics states of the first ``filmed`` arenas at every step,
+    ``physics``: (max_steps + 1, filmed, ...), the reset state first (frozen after an episode ends).
+    """
 
     def episodes(key, agent_state, params, ids):
         state, info = batch_reset(arena, None, num, params, params_axis=params_axis, episodes=ids)
         zeros = jnp.zeros((num,), jnp.float32)
+        film = None
+        if filmed:
+            film = jax.tree_util.tree_map(
+                lambda x: jnp.zeros((max_steps + 1, filmed) + x.shape[1:], x.dtype).at[0].set(x[:filmed]),
+                state.physics)
         carry = (state, info, agent_state, jnp.zeros((num,), bool), zeros, jnp.zeros((num,), jnp.int32),
-                 jnp.zeros((), jnp.int32))
+                 jnp.zeros((), jnp.int32), film)
 
         def cond(c):
             done, t = c[3], c[6]
             return (t < max_steps) & ~jnp.all(done)
 
         def body(c):
-            state, info, agent_state, done, ret, length, t = c
+            state, info, agent_state, done, ret, length, t, film = c
             state, info, agent_state, _, valid = frozen_step(agent, arena, state, info, agent_state,
                                                              jax.random.fold_in(key, t), params, params_axis, done)
             ret = ret + jnp.where(valid, info.reward, 0.0)
             length = length + valid.astype(jnp.int32)
-            return state, info, agent_state, done | info.done, ret, length, t + 1
+            if filmed:
+                film = jax.tree_util.tree_map(lambda f, x: f.at[t + 1].set(x[:filmed]), film, state.physics)
+            return state, info, agent_state, done | info.done, ret, length, t + 1, film
 
-        state, info, agent_state, done, ret, length, _ = jax.lax.while_loop(cond, body, carry)
-        return {"returns": ret, "lengths": length, "successes": info.success, "metrics": info.metrics,
-                "done": done}
+        state, info, agent_state, done, ret, length, _, film = jax.lax.while_loop(cond, body, carry)
+        out = {"returns": ret, "lengths": length, "successes": info.success, "metrics": info.metrics,
+               "done": done}
+        if filmed:
+            out["physics"] = film
+        return out
 
     return jax.jit(episodes)
 
 
+def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_state: PyTree = None,
+                 params: ArenaParams | None = None, params_axis: int | None = None, split: str = "eval",
+                 episodes: Any = None, max_steps: int | None = None, filmed: int = 0
+                 ) -> tuple[EvalResult, PyTree]:
+    """:func:`evaluate`, also returning the physics states of the first ``filmed`` episodes on device,
+    (max_steps + 1, filmed, ...) with the reset state first, or ``None`` when ``filmed == 0``."""
+    if split not in ("eval", "val"):
+        raise ValueError(f"evaluate runs the fixed 'eval' or 'val' splits, got split={split!r}")
+    ids = np.asarray(list(arena.episodes(split)) if episodes is None else episodes, np.int32).reshape(-1)
+    if ids.size == 0:
+        raise ValueError(f"no episodes to evaluate in split {split!r} of arena {arena.name!r}")
+    if not 0 <= int(filmed) <= ids.size:
+        raise ValueError(f"cannot film {filmed} of {ids.size} episodes; choose 0 .. {ids.size}")
+    max_steps = max_steps or arena.max_episode_steps
+    if max_steps is None:
+        raise ValueError(f"arena {arena.name!r} has no time limit; pass max_steps to evaluate")
+    key = jax.random.key(0) if key is None else key
+    params = arena.default_params() if params is None else params
+    if agent_state is None:
+        agent_state = agent.init(jax.random.fold_in(key, 0x1A1), arena.spec, int(ids.size))
+    out = _compiled_episodes(agent, arena, int(ids.size), int(max_steps), params_axis, int(filmed))(
+        key, agent_state, params, jnp.asarray(ids))
+    physics = out.pop("physics", None)  # stays on device: the renderer pulls only what it draws
+    out = jax.device_get(out)
+    result = EvalResult(arena=arena.build_string or arena.name, agent=agent.name, split=split, episodes=ids,
+                        returns=np.asarray(out["returns"]), lengths=np.asarray(out["lengths"]),
+                        successes=np.asarray(out["successes"]),
+                        metrics={k: np.asarray(v) for k, v in out["metrics"].items()})
+    return result, physics
+
+
 def evaluate(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_state: PyTree = None,
              params: ArenaParams | None = None, params_axis: int | None = None, split: str = "eval",
-             episodes: Any = None, max_steps: int | None = None) -> EvalResult:
+             episodes: Any = None, max_steps: int | None = None, videos: int = 0,
+             video_dir: str | Path | None = None, video_options: Any = None) -> EvalResult:
     """Runs ``agent`` on every episode of ``split`` (or the given episode ids), all in parallel.
 
     Each arena runs one episode to its end (terminated or truncated) or ``max_steps`` agent steps; the
@@ -65,29 +113,31 @@ def evaluate(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_
       split: ``eval`` or ``val``.
       episodes: explicit episode ids instead of a split's.
       max_steps: step cap (default: the arena's ``max_episode_steps``).
+      videos: film the first ``videos`` episodes into ``video_dir/<split>_episode_<id>.mp4`` (the results
+        are the same as without): the loop keeps their physics states on device, the frames are rendered
+        on the host afterwards. The arena must render (``jarena.render.can_render``).
+      video_dir: folder for the videos (required with ``videos``).
+      video_options: a :class:`jarena.render.VideoOptions` (frame size, camera, fps, format).
 
     Returns:
       An :class:`EvalResult` with per-episode returns, lengths, successes and metrics.
     """
-    if split not in ("eval", "val"):
-        raise ValueError(f"evaluate runs the fixed 'eval' or 'val' splits, got split={split!r}")
-    ids = np.asarray(list(arena.episodes(split)) if episodes is None else episodes, np.int32).reshape(-1)
-    if ids.size == 0:
-        raise ValueError(f"no episodes to evaluate in split {split!r} of arena {arena.name!r}")
-    max_steps = max_steps or arena.max_episode_steps
-    if max_steps is None:
-        raise ValueError(f"arena {arena.name!r} has no time limit; pass max_steps to evaluate")
-    key = jax.random.key(0) if key is None else key
-    params = arena.default_params() if params is None else params
-    if agent_state is None:
-        agent_state = agent.init(jax.random.fold_in(key, 0x1A1), arena.spec, int(ids.size))
-    out = _compiled_episodes(agent, arena, int(ids.size), int(max_steps), params_axis)(
-        key, agent_state, params, jnp.asarray(ids))
-    out = jax.device_get(out)
-    return EvalResult(arena=arena.build_string or arena.name, agent=agent.name, split=split, episodes=ids,
-                      returns=np.asarray(out["returns"]), lengths=np.asarray(out["lengths"]),
-                      successes=np.asarray(out["successes"]),
-                      metrics={k: np.asarray(v) for k, v in out["metrics"].items()})
+    if videos:
+        from jarena.render.record import check_video
+
+        if video_dir is None:
+            raise ValueError("evaluate(videos=N) needs a video_dir to write the videos to")
+        check_video(arena, video_options, params, params_axis)  # fails before compiling if the arena cannot render
+    result, physics = run_episodes(agent, arena, key, agent_state=agent_state, params=params,
+                                   params_axis=params_axis, split=split, episodes=episodes, max_steps=max_steps,
+                                   filmed=int(videos))
+    if videos:
+        from jarena.render.record import write_episodes
+
+        paths = [Path(video_dir) / f"{split}_episode_{int(i)}" for i in result.episodes[: int(videos)]]
+        write_episodes(arena, physics, result.lengths[: int(videos)], paths, video_options, params=params,
+                       params_axis=params_axis)
+    return result
 
 
 def validate(agent: Agent, arena: Arena, key: jax.Array | None = None, **kwargs) -> EvalResult:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -48,7 +49,10 @@ def _squeeze(tree, axis):
 
 
 @functools.lru_cache(maxsize=64)
-def _compiled_run(agent: Agent, arena: Arena, max_steps: int, with_episode: bool):
+def _compiled_run(agent: Agent, arena: Arena, max_steps: int, with_episode: bool, film: bool = False):
+    """A jitted ``(key, episode, agent_state, params) -> (Trajectory, physics)``; ``physics`` holds the
+    arena's physics states (max_steps + 1, 1, ...), the reset state first, when ``film``, else ``None``."""
+
     def trial(key, episode, agent_state, params):
         reset_key, act_key = jax.random.split(key)
         state, info = batch_reset(arena, reset_key, 1, params,
@@ -59,19 +63,22 @@ def _compiled_run(agent: Agent, arena: Arena, max_steps: int, with_episode: bool
             state, info, agent_state, done = carry
             state, info, agent_state, action, valid = frozen_step(
                 agent, arena, state, info, agent_state, jax.random.fold_in(act_key, t), params, None, done)
-            return (state, info, agent_state, done | info.done), (info, action, valid)
+            return (state, info, agent_state, done | info.done), (info, action, valid,
+                                                                   state.physics if film else None)
 
         carry = (state, info, agent_state, jnp.zeros((1,), bool))
-        _, (infos, actions, valid) = jax.lax.scan(body, carry, jnp.arange(max_steps))
+        _, (infos, actions, valid, physics) = jax.lax.scan(body, carry, jnp.arange(max_steps))
+        if film:
+            physics = jax.tree_util.tree_map(lambda x0, xs: jnp.concatenate([x0[None], xs]), state.physics, physics)
         return Trajectory(initial=_squeeze(initial, 0), infos=_squeeze(infos, 1), actions=_squeeze(actions, 1),
-                          valid=valid[:, 0])
+                          valid=valid[:, 0]), physics
 
     return jax.jit(trial)
 
 
 def run(agent: Agent, arena: Arena, key: jax.Array, *, episode: int | None = None,
-        params: ArenaParams | None = None, agent_state: PyTree = None, max_steps: int | None = None
-        ) -> Trajectory:
+        params: ArenaParams | None = None, agent_state: PyTree = None, max_steps: int | None = None,
+        video: str | Path | None = None, video_options: Any = None) -> Trajectory:
     """Runs one episode (a training episode drawn from ``key``, or ``episode``) in one compiled call.
 
     Args:
@@ -81,7 +88,15 @@ def run(agent: Agent, arena: Arena, key: jax.Array, *, episode: int | None = Non
       params: arena params.
       agent_state: the agent's state for a batch of one arena (default: ``agent.init``).
       max_steps: length of the recorded trajectory (default: the arena's ``max_episode_steps``).
+      video: write a video of the episode to this path (``.mp4`` or ``.gif``): the scan also keeps the
+        physics states on device and the frames are rendered on the host afterwards. The arena must
+        render (``jarena.render.can_render``); the trajectory is the same as without.
+      video_options: a :class:`jarena.render.VideoOptions` (frame size, camera, fps).
     """
+    if video is not None:
+        from jarena.render.record import check_video
+
+        check_video(arena, video_options, params)  # fails before compiling when the arena cannot render
     max_steps = max_steps or arena.max_episode_steps
     if max_steps is None:
         raise ValueError(f"arena {arena.name!r} has no time limit; pass max_steps to run")
@@ -89,4 +104,10 @@ def run(agent: Agent, arena: Arena, key: jax.Array, *, episode: int | None = Non
     if agent_state is None:
         agent_state = agent.init(jax.random.fold_in(key, 0x1A1), arena.spec, 1)
     episode_arg = jnp.asarray(0 if episode is None else episode, jnp.int32)
-    return _compiled_run(agent, arena, int(max_steps), episode is not None)(key, episode_arg, agent_state, params)
+    trajectory, physics = _compiled_run(agent, arena, int(max_steps), episode is not None, video is not None)(
+        key, episode_arg, agent_state, params)
+    if video is not None:
+        from jarena.render.record import write_episodes
+
+        write_episodes(arena, physics, [int(trajectory.length)], [video], video_options, params=params)
+    return trajectory

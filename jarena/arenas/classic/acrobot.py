@@ -28,6 +28,7 @@ from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Box, Dict, Discrete
 from jarena.core.task import Task
 from jarena.core.tree import as_float32
+from jarena.render.classic import draw_acrobot
 
 
 @struct.dataclass
@@ -130,7 +131,8 @@ def swingup() -> Task:
 
 def dynamics() -> Dynamics:
     return Dynamics(init=init, step=step, control_spec=Discrete(3), default_params=lambda: as_float32(AcrobotParams()),
-                    no_op=lambda: jnp.asarray(1, jnp.int32), timestep=0.2, name="acrobot")
+                    no_op=lambda: jnp.asarray(1, jnp.int32), timestep=0.2, render=draw_acrobot,
+                    name="acrobot")
 
 
 def sensor() -> Sensor:

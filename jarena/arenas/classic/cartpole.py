@@ -23,6 +23,7 @@ from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Box, Dict, Discrete
 from jarena.core.task import Task
 from jarena.core.tree import as_float32
+from jarena.render.classic import draw_cartpole
 
 
 @struct.dataclass
@@ -97,7 +98,8 @@ def balance() -> Task:
 
 def dynamics() -> Dynamics:
     return Dynamics(init=init, step=step, control_spec=Discrete(2),
-                    default_params=lambda: as_float32(CartPoleParams()), timestep=0.02, name="cartpole")
+                    default_params=lambda: as_float32(CartPoleParams()), timestep=0.02, render=draw_cartpole,
+                    name="cartpole")
 
 
 def sensor() -> Sensor:

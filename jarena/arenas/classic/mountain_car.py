@@ -24,6 +24,7 @@ from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Box, Dict
 from jarena.core.task import Task
 from jarena.core.tree import as_float32
+from jarena.render.classic import draw_mountain_car
 
 
 @struct.dataclass
@@ -95,7 +96,8 @@ def continuous() -> Task:
 
 def dynamics() -> Dynamics:
     return Dynamics(init=init, step=step, control_spec=Box(-1.0, 1.0, (1,), jnp.float32),
-                    default_params=lambda: as_float32(MountainCarParams()), timestep=1.0, name="mountain_car")
+                    default_params=lambda: as_float32(MountainCarParams()), timestep=1.0, render=draw_mountain_car,
+                    name="mountain_car")
 
 
 def sensor() -> Sensor:

@@ -27,6 +27,7 @@ from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Box, Dict
 from jarena.core.task import Task
 from jarena.core.tree import as_float32
+from jarena.render.classic import draw_pendulum
 
 
 @struct.dataclass
@@ -104,7 +105,8 @@ def swingup() -> Task:
 
 def dynamics() -> Dynamics:
     return Dynamics(init=init, step=step, control_spec=Box(-2.0, 2.0, (1,), jnp.float32),
-                    default_params=lambda: as_float32(PendulumParams()), timestep=0.05, name="pendulum")
+                    default_params=lambda: as_float32(PendulumParams()), timestep=0.05, render=draw_pendulum,
+                    name="pendulum")
 
 
 def sensor() -> Sensor:

@@ -27,6 +27,7 @@ from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Box, Dict
 from jarena.core.task import Task
 from jarena.core.tree import as_float32
+from jarena.render.classic import draw_point_mass
 from jarena.tasks.goal_reaching import goal_reaching
 
 
@@ -81,7 +82,8 @@ def reach(threshold: float = 0.05, reward: str = "dense") -> Task:
 
 def dynamics() -> Dynamics:
     return Dynamics(init=init, step=step, control_spec=Box(-1.0, 1.0, (2,), jnp.float32),
-                    default_params=lambda: as_float32(PointMassParams()), timestep=0.05, name="point_mass")
+                    default_params=lambda: as_float32(PointMassParams()), timestep=0.05, render=draw_point_mass,
+                    name="point_mass")
 
 
 def sensor() -> Sensor:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import atexit
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # headless by default; must precede mujoco's GL import
@@ -37,6 +38,9 @@ class _Frames:
                 m.vis.global_.offheight = max(m.vis.global_.offheight, height)
                 m.vis.global_.offwidth = max(m.vis.global_.offwidth, width)
             self.renderers[key] = mujoco.Renderer(m, height, width)
+            # free the GL contexts at exit before MuJoCo's EGL display is terminated (registered on the
+            # first context, so this later registration runs first); avoids errors from __del__ at exit
+            atexit.register(self.renderers[key].close)
         renderer = self.renderers[key]
         renderer.update_scene(d, camera=camera)
         return renderer.render().copy()
