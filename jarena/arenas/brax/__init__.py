@@ -25,6 +25,8 @@ import dataclasses
 import importlib
 from typing import Any
 
+from jarena.arenas.assemble import assemble
+from jarena.arenas.domain import Domain
 from jarena.building.builder import register_arena_builder
 from jarena.building.grammar import ArenaStringError, Call
 from jarena.building.registry import unknown_choice
@@ -82,9 +84,6 @@ def build(env: Any, backend: str = DEFAULT_BACKEND, action: Any = None, time_lim
     name, options = _env_call(env)
     if backend not in BACKENDS:
         raise ArenaStringError(unknown_choice(f"backend for brax env {name!r}:", backend, list(BACKENDS)))
-    from jarena.arenas.assemble import assemble
-    from jarena.arenas.domain import Domain
-
     brax_env = importlib.import_module("jarena.arenas.brax.env")
     valid = brax_env.env_options(ENVS[name])
     for key in options:

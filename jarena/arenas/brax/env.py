@@ -12,7 +12,9 @@
   envs never truncate, episodes end by jarena's ``time_limit``); Brax's ``metrics`` (named scalars such
   as ``x_velocity``, ``reward_ctrl``) become ``Outcome.metrics``.
 - Params (:class:`BraxParams`): mass and friction scales applied to the env's ``System`` inside
-  ``init`` and ``step``, for domain randomisation (1 = Brax's model; every backend reads them).
+  ``init`` and ``step``, for domain randomisation (1 = Brax's model). Every backend reads them, but the
+  spring and positional pipelines use ``mass ** (1 - spring_mass_scale)``: where a model sets
+  ``spring_mass_scale=1`` (ant), masses, and so ``mass_scale``, have no effect on those two.
 """
 
 from __future__ import annotations
@@ -107,11 +109,22 @@ def _raw_key(key: jax.Array) -> jax.Array:
     return jax.random.key_data(key) if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key) else key
 
 
+def _strong(x) -> jax.Array:
+    x = jnp.asarray(x)
+    return jax.lax.convert_element_type(x, x.dtype) if x.weak_type else x
+
+
 def _typed(state):
-    """Brax's reward, done and metrics as float32 arrays (envs may return Python floats)."""
+    """Brax's state with reward, done and metrics as float32 arrays and no weakly typed leaves.
+
+    Envs return Python floats and weakly typed arrays in places (inverted_pendulum's ``info["time_out"]``
+    is weak after ``step``, not after ``reset``); a state whose types change from step to step would make
+    ``jit`` retrace and ``lax.scan`` reject its carry.
+    """
     f32 = lambda x: jnp.asarray(x, jnp.float32)
-    return state.replace(reward=f32(state.reward), done=f32(state.done),
-                         metrics={k: f32(v) for k, v in state.metrics.items()})
+    state = state.replace(reward=f32(state.reward), done=f32(state.done),
+                          metrics={k: f32(v) for k, v in state.metrics.items()})
+    return jax.tree_util.tree_map(_strong, state)
 
 
 def brax_dynamics(env, name: str = "brax") -> Dynamics:

@@ -131,6 +131,17 @@ def test_every_env_builds_with_brax_specs(name):
     assert f"brax|env:{name}" in jarena.list_arenas("benchmark")
 
 
+def test_state_types_do_not_change_across_steps():
+    """Brax's inverted_pendulum returns ``info["time_out"]`` weakly typed after ``step`` (not after ``reset``);
+    the arena's state keeps one type, so jitted loops neither retrace nor reject the scan carry."""
+    arena = jarena.build_arena("brax|env:inverted_pendulum")
+    state, _ = jax.eval_shape(lambda: arena.reset(jax.random.key(0)))
+    after, _ = jax.eval_shape(lambda s: arena.step(s, arena.no_op()), state)
+    types = lambda tree: [(x.shape, x.dtype, x.weak_type) for x in jax.tree_util.tree_leaves(tree)]
+    assert jax.tree_util.tree_structure(after) == jax.tree_util.tree_structure(state)
+    assert types(after) == types(state)
+
+
 def test_options_reach_the_env():
     arena = jarena.build_arena("brax|env:ant(exclude_current_positions_from_observation=false)")
     assert arena.observation_spec["state"].shape == (29,)  # x and y of the torso added
