@@ -5,7 +5,7 @@ import numpy as np
 import jarena
 from jarena.arenas.dmc import cheetah
 from jarena.core import episodes
-from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, dm_env, perturb
+from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, dm_env, perturb, resets
 
 
 def running(rng, physics):
@@ -23,7 +23,7 @@ def test_initial_states_settle_as_in_the_suite():
     """Random limited joints then 200 settling physics steps: the same states as dm_control's for the same draws."""
     arena = jarena.build_arena("dmc|domain:cheetah,task:run")
     n = 4
-    states, infos = jax.jit(lambda: jarena.batch_reset(arena, None, n, episodes=jnp.arange(n)))()
+    states, infos = resets(arena, n)
     qpos, qvel = np.asarray(states.physics.qpos), np.asarray(states.physics.qvel)
     np.testing.assert_array_equal(states.physics.time, 0)
     env = dm_env("cheetah", "run", 0)

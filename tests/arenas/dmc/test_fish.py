@@ -1,5 +1,3 @@
-import jax
-import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
@@ -7,7 +5,7 @@ from mujoco import mjx
 
 import jarena
 from jarena.arenas.dmc import common, fish
-from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, perturb
+from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, perturb, resets
 
 TASKS = ["upright", "swim"]
 
@@ -68,7 +66,7 @@ def test_the_suite_model_needs_the_edit_and_the_edit_keeps_the_dynamics():
 def test_initial_states_follow_the_suite(task):
     arena = jarena.build_arena(f"dmc|domain:fish,task:{task}")
     n = 32
-    states, infos = jax.jit(lambda: jarena.batch_reset(arena, None, n, episodes=jnp.arange(n)))()
+    states, infos = resets(arena, n)
     model = arena.dynamics.render.model
     qpos, qvel = np.asarray(states.physics.qpos), np.asarray(states.physics.qvel)
     np.testing.assert_allclose(qpos[:, :3], np.broadcast_to(model.qpos0[:3], (n, 3)))  # position kept

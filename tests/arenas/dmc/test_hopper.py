@@ -1,11 +1,9 @@
-import jax
-import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
 
 import jarena
-from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, compare_sensors, perturb
+from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, compare_sensors, perturb, resets
 
 TASKS = ["stand", "hop"]
 
@@ -39,7 +37,7 @@ def test_mjx_computes_speed_and_touch_sensors():
 def test_initial_states_follow_the_suite():
     arena = jarena.build_arena("dmc|domain:hopper,task:hop")
     n = 32
-    states, infos = jax.jit(lambda: jarena.batch_reset(arena, None, n, episodes=jnp.arange(n)))()
+    states, infos = resets(arena, n)
     model = arena.dynamics.render.model
     qpos, qvel = np.asarray(states.physics.qpos), np.asarray(states.physics.qvel)
     np.testing.assert_array_equal(qpos[:, :2], 0)  # rootx, rootz kept

@@ -1,11 +1,9 @@
-import jax
-import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
 
 import jarena
-from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, perturb
+from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, perturb, resets
 
 TASKS = ["stand", "walk", "run"]
 
@@ -33,7 +31,7 @@ def test_initial_states_do_not_penetrate():
     """Random joints re-drawn until no contact: MuJoCo finds none in any start (dm_control's ``ncon == 0``)."""
     arena = jarena.build_arena("dmc|domain:humanoid,task:stand")
     n = 32
-    states, infos = jax.jit(lambda: jarena.batch_reset(arena, None, n, episodes=jnp.arange(n)))()
+    states, infos = resets(arena, n)
     model = arena.dynamics.render.model
     qpos, qvel = np.asarray(states.physics.qpos), np.asarray(states.physics.qvel)
     data = mujoco.MjData(model)

@@ -1,5 +1,3 @@
-import jax
-import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
@@ -7,7 +5,7 @@ from mujoco import mjx
 
 import jarena
 from jarena.arenas.dmc import common, swimmer
-from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, compare_sensors, perturb
+from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, compare_sensors, perturb, resets
 
 
 def copy_target(physics, model, data):
@@ -64,7 +62,7 @@ def test_the_suite_model_needs_the_edit_and_the_edit_keeps_the_dynamics():
 def test_initial_states_follow_the_suite():
     arena = jarena.build_arena("dmc|domain:swimmer,task:swimmer6")
     n = 64
-    states, infos = jax.jit(lambda: jarena.batch_reset(arena, None, n, episodes=jnp.arange(n)))()
+    states, infos = resets(arena, n)
     model = arena.dynamics.render.model
     qpos, qvel = np.asarray(states.physics.qpos), np.asarray(states.physics.qvel)
     np.testing.assert_array_equal(qpos[:, :2], 0)  # position kept

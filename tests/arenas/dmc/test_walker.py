@@ -1,11 +1,10 @@
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jarena
 from jarena.arenas.dmc import walker
-from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, dm_env, perturb, to_mjx
+from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, dm_env, perturb, resets, to_mjx
 
 TASKS = ["stand", "walk", "run"]
 
@@ -28,7 +27,7 @@ def test_observation_and_reward_match_dm_control(task):
 
 def test_initial_states_follow_the_suite():
     arena = jarena.build_arena("dmc|domain:walker,task:walk")
-    states, infos = jax.jit(lambda: jarena.batch_reset(arena, None, 32, episodes=jnp.arange(32)))()
+    states, infos = resets(arena, 32)
     model = arena.dynamics.render.model
     qpos, qvel = np.asarray(states.physics.qpos), np.asarray(states.physics.qvel)
     np.testing.assert_array_equal(qpos[:, :2], 0)  # rootz, rootx kept
