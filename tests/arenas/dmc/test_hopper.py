@@ -9,17 +9,20 @@ TASKS = ["stand", "hop"]
 
 
 def upright(rng, physics):
-    """Near upright, joints anywhere in their ranges (torso-foot height around 0.6), the foot often in the
+    """Near upright, legs from straight to crouched (torso-foot height around 0.6), the foot mostly in the
     floor (touch sensors on), moving forward at up to 4 m/s (hop from 2 m/s, margin 1)."""
     perturb(rng, physics, 0.05)
-    m = physics.model
     q, v = physics.named.data.qpos, physics.named.data.qvel
-    for joint in ("waist", "hip", "knee", "ankle"):
-        low, high = m.jnt_range[m.name2id(joint, "joint")]
+    for joint, (low, high) in {"waist": (-0.3, 0.3), "hip": (-1.2, 0.1), "knee": (0.1, 2.4), "ankle": (-0.7, 0.7)}.items():
         q[joint] = rng.uniform(low, high)
-    q["rootz"] = rng.uniform(-0.35, 0.05)
     q["rooty"] = rng.uniform(-0.3, 0.3)
     v["rootx"] = rng.uniform(-1, 4)
+    physics.forward()
+    foot = physics.named.data
+    axis = foot.geom_xmat["foot"].reshape(3, 3)[:, 2] * physics.named.model.geom_size["foot", 1]
+    lowest = min(foot.geom_xpos["foot", 2] + axis[2], foot.geom_xpos["foot", 2] - axis[2])
+    lowest -= physics.named.model.geom_size["foot", 0]
+    q["rootz"] -= lowest + rng.uniform(-0.02, 0.05)  # the foot's lowest point 2 cm above the floor to 5 cm in it
 
 
 @pytest.mark.parametrize("task", TASKS)
