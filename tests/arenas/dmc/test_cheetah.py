@@ -31,6 +31,8 @@ def test_initial_states_settle_as_in_the_suite():
     for i in range(n):
         # the key Arena.reset gives the chain's first task (cheetah run) in episode i
         adr, draws = cheetah.draw_limited_joints(jax.random.fold_in(episodes.piece_key(jnp.int32(i), 4), 0))
+        low, high = physics.model.jnt_range[adr].T
+        assert np.all((low <= draws) & (draws <= high))
         with physics.reset_context():
             physics.data.qpos[adr] = np.asarray(draws)
             physics.step(nstep=200)

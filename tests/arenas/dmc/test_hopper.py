@@ -13,7 +13,8 @@ def upright(rng, physics):
     floor (touch sensors on), moving forward at up to 4 m/s (hop from 2 m/s, margin 1)."""
     perturb(rng, physics, 0.05)
     q, v = physics.named.data.qpos, physics.named.data.qvel
-    for joint, (low, high) in {"waist": (-0.3, 0.3), "hip": (-1.2, 0.1), "knee": (0.1, 2.4), "ankle": (-0.7, 0.7)}.items():
+    crouch = {"waist": (-0.3, 0.3), "hip": (-1.2, 0.1), "knee": (0.1, 2.4), "ankle": (-0.7, 0.7)}
+    for joint, (low, high) in crouch.items():
         q[joint] = rng.uniform(low, high)
     q["rooty"] = rng.uniform(-0.3, 0.3)
     v["rootx"] = rng.uniform(-1, 4)
