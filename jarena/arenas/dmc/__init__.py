@@ -21,6 +21,12 @@ from jarena.core.arena import Arena
 #: module (``jarena.arenas.dmc.<domain>``) is imported when one of its arenas is built.
 SUITE: dict[str, tuple[str, ...]] = {
     "cartpole": ("balance", "balance_sparse", "swingup", "swingup_sparse"),
+    "cheetah": ("run",),
+    "walker": ("stand", "walk", "run"),
+    "hopper": ("stand", "hop"),
+    "humanoid": ("stand", "walk", "run"),
+    "swimmer": ("swimmer6",),
+    "fish": ("upright", "swim"),
 }
 
 #: Domains of the suite that MJX cannot simulate, and why (building them is a clear error).

@@ -92,6 +92,12 @@ def physics_step(m: mjx.Model, d: mjx.Data) -> mjx.Data:
     return _observe_state(m, _integrate(m, d))
 
 
+#: The two halves of ``physics_step`` for code that must order them as dm_control does around a reset, e.g.
+#: a step taken from a state whose kinematics are still those of ``qpos0`` (``mj_step2`` then ``mj_step1``).
+integrate = _integrate
+observe_state = _observe_state
+
+
 def control_spec(model: mujoco.MjModel) -> Box:
     """A Box over the actuators' control ranges (unbounded for actuators without ``ctrllimited``)."""
     limited = np.asarray(model.actuator_ctrllimited, bool)

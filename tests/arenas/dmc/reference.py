@@ -7,11 +7,12 @@ then run on that ``mjx.Data`` (no MJX step is compiled, so these tests are cheap
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import jax
 import mujoco
 import numpy as np
+import pytest
 from dm_control import suite
 from mujoco import mjx
 
@@ -56,8 +57,12 @@ def to_mjx(model: mujoco.MjModel, physics, sync: Callable | None = None) -> mjx.
 
 
 def compare(domain: str, task: str, *, seeds=range(3), states_per_seed: int = 4, scale: float = 0.3,
-            sync: Callable | None = None, atol: float = 1e-4) -> None:
-    """Asserts equal observations (every key) and rewards on random states of the task."""
+            sync: Callable | None = None, atol: float = 1e-4, state: Callable | None = None) -> None:
+    """Asserts equal observations (every key) and rewards on random states of the task.
+
+    ``state(rng, physics)``, when given, sets dm_control's state instead of :func:`perturb` (e.g. a walker
+    standing and moving, where the reward's terms are not constant); the physics is forwarded after it.
+    """
     arena = jarena.build_arena(f"dmc|domain:{domain},task:{task}")
     params = arena.default_params()
     model = arena.dynamics.render.model  # the MjModel our dynamics were built from
@@ -75,7 +80,11 @@ def compare(domain: str, task: str, *, seeds=range(3), states_per_seed: int = 4,
         env.reset()
         rng = np.random.RandomState(seed)
         for _ in range(states_per_seed):
-            perturb(rng, env.physics, scale)
+            if state is None:
+                perturb(rng, env.physics, scale)
+            else:
+                state(rng, env.physics)
+                env.physics.forward()
             expected_obs = env.task.get_observation(env.physics)
             expected_reward = env.task.get_reward(env.physics)
             obs, reward = ours(to_mjx(model, env.physics, sync))
@@ -87,3 +96,87 @@ def compare(domain: str, task: str, *, seeds=range(3), states_per_seed: int = 4,
                                        err_msg=f"{domain}/{task} reward")
             checked += 1
     assert checked == len(list(seeds)) * states_per_seed
+
+
+def compare_sensors(domain: str, task: str, sensors: Sequence[str], *, state: Callable | None = None,
+                    sync: Callable | None = None, seeds=range(2), states_per_seed: int = 4, atol: float = 1e-4,
+                    rtol: float = 1e-4) -> None:
+    """Asserts that MJX computes the named sensors as MuJoCo does on random states.
+
+    MuJoCo's forwarded state is put on MJX with its sensor data zeroed; MJX recomputes the kinematics,
+    centre-of-mass and velocity quantities and its position and velocity sensors, and, where a sensor
+    needs the acceleration stage (touch), its acceleration sensors from MuJoCo's contact forces. Only
+    small pieces of MJX are compiled (no collision detection, no constraint solver).
+    """
+    arena = jarena.build_arena(f"dmc|domain:{domain},task:{task}")
+    model = arena.dynamics.render.model
+    m = mjx.put_model(model)
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, name) for name in sensors]
+    assert min(ids) >= 0, f"unknown sensors in {sensors}"
+    needs_acc = any(model.sensor_needstage[i] == mujoco.mjtStage.mjSTAGE_ACC for i in ids)
+
+    @jax.jit
+    def recompute(d):
+        d = d.replace(sensordata=jax.numpy.zeros_like(d.sensordata))
+        d = mjx.com_vel(m, mjx.com_pos(m, mjx.kinematics(m, d)))
+        d = mjx.sensor_vel(m, mjx.sensor_pos(m, d))
+        return mjx.sensor_acc(m, d).sensordata if needs_acc else d.sensordata
+
+    for seed in seeds:
+        env = dm_env(domain, task, seed)
+        env.reset()
+        rng = np.random.RandomState(seed)
+        for _ in range(states_per_seed):
+            if state is None:
+                perturb(rng, env.physics)
+            else:
+                state(rng, env.physics)
+            env.physics.forward()
+            ours = np.asarray(recompute(to_mjx(model, env.physics, sync)))
+            for name, i in zip(sensors, ids, strict=True):
+                at = slice(model.sensor_adr[i], model.sensor_adr[i] + model.sensor_dim[i])
+                np.testing.assert_allclose(ours[at], env.physics.named.data.sensordata[name], atol=atol, rtol=rtol,
+                                           err_msg=f"{domain} sensor {name}")
+
+
+def compare_resets(arena, domain: str, task: str, states, infos, *, to_suite: Callable | None = None,
+                   atol: float = 1e-4, rtol: float = 1e-4) -> None:
+    """Asserts that every reset's observation equals dm_control's on the same physics state.
+
+    Each batched state's qpos and qvel (and, via ``to_suite(physics, data, i)``, task-specific model state
+    such as a target) are written into dm_control's physics, which runs its ``after_reset``; the suite's
+    ``get_observation`` must then give our reset observation. Checks the MJX forward pass of the reset
+    (kinematics, sensors, contact forces) against MuJoCo's.
+    """
+    env = dm_env(domain, task, 0)
+    env.reset()
+    physics = env.physics
+    qpos, qvel = np.asarray(states.physics.qpos), np.asarray(states.physics.qvel)
+    for i in range(qpos.shape[0]):
+        with physics.reset_context():
+            physics.data.qpos[:] = qpos[i]
+            physics.data.qvel[:] = qvel[i]
+            if to_suite is not None:
+                to_suite(physics, states.physics, i)
+        expected = env.task.get_observation(physics)
+        assert set(infos.observation) == set(expected)
+        for k, v in expected.items():
+            np.testing.assert_allclose(np.asarray(infos.observation[k][i]).ravel(), np.asarray(v).ravel(), atol=atol,
+                                       rtol=rtol, err_msg=f"{domain}/{task} reset {i} observation {k}")
+
+
+def assert_suite_episodes(arena, domain: str, task: str) -> None:
+    """Episode length in control steps and control timestep as dm_control's environment has them."""
+    env = dm_env(domain, task, 0)
+    assert arena.max_episode_steps == env._step_limit
+    assert arena.dynamics.timestep == pytest.approx(env.control_timestep())
+
+
+def resets(arena, n: int):
+    """Episodes ``0..n-1``'s ``(state, info)`` stacked along a leading axis, from one jitted ``arena.reset``.
+
+    The same states as ``jarena.batch_reset(arena, None, n, episodes=range(n))``; an unbatched reset
+    compiles in about 60% of the batched one's time, which is most of these tests' cost on the CPU.
+    """
+    reset = jax.jit(lambda episode: arena.reset(None, None, episode))
+    return jax.tree.map(lambda *leaves: np.stack(leaves), *[reset(np.int32(e)) for e in range(n)])
