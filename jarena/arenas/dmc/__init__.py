@@ -20,6 +20,12 @@ from jarena.core.arena import Arena
 #: module (``jarena.arenas.dmc.<domain>``) is imported when one of its arenas is built.
 SUITE: dict[str, tuple[str, ...]] = {
     "cartpole": ("balance", "balance_sparse", "swingup", "swingup_sparse"),
+    "pendulum": ("swingup",),
+    "acrobot": ("swingup", "swingup_sparse"),
+    "point_mass": ("easy",),
+    "reacher": ("easy", "hard"),
+    "finger": ("spin", "turn_easy", "turn_hard"),
+    "ball_in_cup": ("catch",),
 }
 
 #: Domains of the suite that MJX cannot simulate, and why (building them is a clear error).
