@@ -128,5 +128,5 @@ def sample_collision_free(key: jax.Array, data: mjx.Data, sample: Callable[[jax.
         attempt, _, _, bad = carry
         return bad & (attempt < max_attempts)
 
-    first = draw((jnp.zeros((), jnp.int32), key, data, jnp.ones((), bool)))
-    return jax.lax.while_loop(again, draw, first)[2]
+    # starts "penetrating", so the loop draws at least once (and traces ``sample`` and the check once)
+    return jax.lax.while_loop(again, draw, (jnp.zeros((), jnp.int32), key, data, jnp.ones((), bool)))[2]
