@@ -1,3 +1,5 @@
+import copy
+
 import jax
 import mujoco
 import numpy as np
@@ -75,8 +77,8 @@ def test_task_models():
     for task in ["turn_hard", "spin"]:
         edited = common.load_model("finger", edit=finger.EDITS[task])
         if task == "spin":  # dm_control's spin physics: the suite's model with its damping set
-            original = common.load_model("finger")
-            original.dof_damping[2] = 0.03
+            original = copy.copy(common.load_model("finger"))  # (not the cached model itself)
+            original.dof_damping[common.Names(original).qvel("hinge")] = 0.03
         rng = np.random.RandomState(1)
         a, b = mujoco.MjData(original), mujoco.MjData(edited)
         a.qvel[:] = b.qvel[:] = rng.uniform(-5, 5, original.nv)
