@@ -57,7 +57,7 @@ def assemble(builder: str, domains: Mapping[str, Domain], domain: str, task: Any
     if dom.tool is not None:
         tools.append(dom.tool())
 
-    dynamics = dom.dynamics()
+    dynamics = dom.dynamics_for(task_call.name)
     extra = {}
     if eval_episodes is not None:
         extra["num_eval_episodes"] = int(eval_episodes)

@@ -25,6 +25,8 @@ class Domain:
       sensors: task name -> ``() -> Sensor`` for tasks that observe more than the domain's sensor
         (dm_control's observations are defined per task, e.g. finger turn adds its target).
       lazy_reset: build arenas with ``Arena.lazy_reset`` (expensive resets, episodes that end together).
+      task_dynamics: task name -> ``() -> Dynamics`` for tasks whose physics differ from the domain's
+        (dm_control's finger spin lowers the spinner's damping; reacher hard shrinks its target).
     """
 
     name: str
@@ -36,9 +38,13 @@ class Domain:
     tags: Mapping[str, tuple[str, ...]] = dataclasses.field(default_factory=dict)
     sensors: Mapping[str, Callable[[], Sensor]] = dataclasses.field(default_factory=dict)
     lazy_reset: bool = False
+    task_dynamics: Mapping[str, Callable[[], Dynamics]] = dataclasses.field(default_factory=dict)
 
     def sensor_for(self, task: str) -> Sensor:
         return self.sensors.get(task, self.sensor)()
+
+    def dynamics_for(self, task: str) -> Dynamics:
+        return self.task_dynamics.get(task, self.dynamics)()
 
     @property
     def default_task(self) -> str:

@@ -27,6 +27,12 @@ SUITE: dict[str, tuple[str, ...]] = {
     "humanoid": ("stand", "walk", "run"),
     "swimmer": ("swimmer6",),
     "fish": ("upright", "swim"),
+    "pendulum": ("swingup",),
+    "acrobot": ("swingup", "swingup_sparse"),
+    "point_mass": ("easy",),
+    "reacher": ("easy", "hard"),
+    "finger": ("spin", "turn_easy", "turn_hard"),
+    "ball_in_cup": ("catch",),
 }
 
 #: Domains of the suite that MJX cannot simulate, and why (building them is a clear error).
@@ -74,8 +80,8 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
     if any(o is not None for o in options) and domain in SUITE:
         from jarena.arenas.dmc import common
         dom = DOMAINS[domain]
-        dynamics = common.with_options(dom.dynamics(), *options)
-        domains = {domain: dataclasses.replace(dom, dynamics=lambda: dynamics)}
+        optioned = {name: common.with_options(dom.dynamics_for(name), *options) for name in dom.tasks}
+        domains = {domain: dataclasses.replace(dom, task_dynamics={n: (lambda d=d: d) for n, d in optioned.items()})}
     return assemble("dmc", domains, domain, task, action, time_limit, wrap, eval_episodes, val_episodes)
 
 

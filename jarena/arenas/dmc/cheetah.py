@@ -57,7 +57,7 @@ def reward(data) -> jax.Array:
 
 @functools.cache
 def _device_model() -> mjx.Model:
-    return mjx.put_model(common.load_model("cheetah"))
+    return common.device_model("cheetah")
 
 
 def draw_limited_joints(key: jax.Array) -> tuple[np.ndarray, jax.Array]:

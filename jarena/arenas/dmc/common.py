@@ -16,6 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import mujoco
 from mujoco import mjx
 
@@ -70,6 +71,15 @@ def load_model(domain: str, *args, edit: Callable[[str], str] | None = None) -> 
     for flag in _MJX_UNUSED_FLAGS:
         model.opt.enableflags &= ~int(flag)
     return model
+
+
+def replace_once(xml: str, old: str, new: str) -> str:
+    """``xml`` with its single occurrence of ``old`` replaced by ``new`` (for ``edit`` functions); a
+    ``ValueError`` if ``old`` does not occur exactly once (the suite's model changed)."""
+    count = xml.count(old)
+    if count != 1:
+        raise ValueError(f"expected one occurrence of {old!r} in the suite's model, found {count}")
+    return xml.replace(old, new)
 
 
 @functools.cache
@@ -135,3 +145,48 @@ def with_options(dynamics: Dynamics, iterations: int | None = None, ls_iteration
         model.opt.disableflags = (model.opt.disableflags & ~bit) if eulerdamp else (model.opt.disableflags | bit)
     substeps = int(round(dynamics.timestep / float(model.opt.timestep)))
     return mjx_dynamics(model, substeps, name=dynamics.name, render=renderer_for(model))
+
+
+# ---------------------------------------------------------------- collision-free initial states
+@functools.cache
+def device_model(domain: str, *args, edit: Callable[[str], str] | None = None) -> mjx.Model:
+    """``load_model(domain, *args, edit=edit)`` on MJX (cached), for tasks that query the model at reset.
+
+    Built eagerly even when first asked for inside a trace (``jax.ensure_compile_time_eval``), so the cache
+    holds concrete arrays, never a tracer of the program that happened to ask first.
+    """
+    with jax.ensure_compile_time_eval():
+        return mjx.put_model(load_model(domain, *args, edit=edit))
+
+
+def penetrating(m: mjx.Model, data: mjx.Data) -> jax.Array:
+    """dm_control's ``physics.data.ncon > 0`` after ``after_reset`` for ``data.qpos``: any contact.
+
+    Runs MJX's kinematics and collision detection only; MJX keeps a fixed set of candidate contacts, of
+    which MuJoCo would report those closer than their margin (the suite's models have no geom gap).
+    """
+    data = mjx.collision(m, mjx.kinematics(m, data))
+    contact = data._impl.contact
+    if contact.dist.size == 0:
+        return jnp.zeros((), bool)
+    return jnp.any(contact.dist < contact.includemargin)
+
+
+def sample_collision_free(key: jax.Array, data: mjx.Data, sample: Callable[[jax.Array, mjx.Data], mjx.Data],
+                          m: mjx.Model, max_attempts: int = 1000) -> mjx.Data:
+    """dm_control's rejection loops (``while penetrating: randomise``): ``sample(key, data)`` with fresh
+    keys until the state has no contact, at most ``max_attempts`` draws (dm_control raises after that;
+    here the last draw is kept). A ``lax.while_loop``: batched resets draw until every member is free.
+    """
+    def draw(carry):
+        attempt, key, _, _ = carry
+        key, k = jax.random.split(key)
+        new = sample(k, data)
+        return attempt + 1, key, new, penetrating(m, new)
+
+    def again(carry):
+        attempt, _, _, bad = carry
+        return bad & (attempt < max_attempts)
+
+    # starts "penetrating", so the loop draws at least once (and traces ``sample`` and the check once)
+    return jax.lax.while_loop(again, draw, (jnp.zeros((), jnp.int32), key, data, jnp.ones((), bool)))[2]

@@ -105,7 +105,7 @@ def _device_model() -> mjx.Model:
     model = common.load_model("humanoid")
     if np.any(model.geom_margin != 0):
         raise ValueError("humanoid's penetration test assumes zero geom margins")
-    return mjx.put_model(model)
+    return common.device_model("humanoid")
 
 
 def penetrating(m: mjx.Model, data: mjx.Data) -> jax.Array:

@@ -117,7 +117,8 @@ def mjx_dynamics(model: mujoco.MjModel, substeps: int = 1, name: str = "mjx",
     if substeps < 1:
         raise ValueError(f"substeps must be >= 1, got {substeps}")
     try:
-        device_model = mjx.put_model(model)
+        with jax.ensure_compile_time_eval():  # concrete arrays even if built inside a trace
+            device_model = mjx.put_model(model)
     except NotImplementedError as e:
         raise NotImplementedError(f"MJX cannot run model {name!r}: {e}") from None
 

@@ -57,11 +57,15 @@ def to_mjx(model: mujoco.MjModel, physics, sync: Callable | None = None) -> mjx.
 
 
 def compare(domain: str, task: str, *, seeds=range(3), states_per_seed: int = 4, scale: float = 0.3,
-            sync: Callable | None = None, atol: float = 1e-4, state: Callable | None = None) -> None:
+            sync: Callable | None = None, atol: float = 1e-4, state: Callable | None = None,
+            adjust: Callable | None = None) -> dict:
     """Asserts equal observations (every key) and rewards on random states of the task.
 
     ``state(rng, physics)``, when given, sets dm_control's state instead of :func:`perturb` (e.g. a walker
-    standing and moving, where the reward's terms are not constant); the physics is forwarded after it.
+    standing and moving, where the reward's terms are not constant); ``adjust(rng, physics)``, if given,
+    then edits it (e.g. to bring it near the goal so that sparse rewards are exercised). The physics is
+    forwarded afterwards. Returns the largest absolute deviation seen per observation key and for
+    ``"reward"``, and the rewards seen (``"rewards"``: dm_control's, in order).
     """
     arena = jarena.build_arena(f"dmc|domain:{domain},task:{task}")
     params = arena.default_params()
@@ -75,6 +79,8 @@ def compare(domain: str, task: str, *, seeds=range(3), states_per_seed: int = 4,
         return arena.sensor.observe(data, params.sensor), outcome.reward
 
     checked = 0
+    deviation = {}
+    rewards = []
     for seed in seeds:
         env = dm_env(domain, task, seed)
         env.reset()
@@ -84,18 +90,70 @@ def compare(domain: str, task: str, *, seeds=range(3), states_per_seed: int = 4,
                 perturb(rng, env.physics, scale)
             else:
                 state(rng, env.physics)
+            if adjust is not None:
+                adjust(rng, env.physics)
                 env.physics.forward()
             expected_obs = env.task.get_observation(env.physics)
             expected_reward = env.task.get_reward(env.physics)
             obs, reward = ours(to_mjx(model, env.physics, sync))
             assert set(obs) == set(expected_obs), f"observation keys {sorted(obs)} != {sorted(expected_obs)}"
             for k, v in expected_obs.items():
+                assert obs[k].shape == env.observation_spec()[k].shape, f"{domain}/{task} observation {k} shape"
+                assert obs[k].dtype == np.float32, f"{domain}/{task} observation {k} dtype"
                 np.testing.assert_allclose(np.asarray(obs[k]).ravel(), np.asarray(v, np.float64).ravel(),
                                            atol=atol, rtol=1e-4, err_msg=f"{domain}/{task} observation {k}")
             np.testing.assert_allclose(float(reward), float(expected_reward), atol=atol, rtol=1e-4,
                                        err_msg=f"{domain}/{task} reward")
+            for k, v in expected_obs.items():
+                err = float(np.max(np.abs(np.asarray(obs[k], np.float64).ravel() - np.asarray(v, np.float64).ravel())))
+                deviation[k] = max(deviation.get(k, 0.0), err)
+            deviation["reward"] = max(deviation.get("reward", 0.0), abs(float(reward) - float(expected_reward)))
+            rewards.append(float(expected_reward))
             checked += 1
     assert checked == len(list(seeds)) * states_per_seed
+    return {**deviation, "rewards": rewards}
+
+
+def reset_batch(domain: str, task: str, n: int = 64):
+    """``(arena, states, infos)`` of ``n`` episodes reset by ``jax.jit(jarena.batch_reset)`` (episodes 0..n-1)."""
+    arena = jarena.build_arena(f"dmc|domain:{domain},task:{task}")
+    states, infos = jax.jit(lambda: jarena.batch_reset(arena, None, n, episodes=jax.numpy.arange(n)))()
+    return arena, states, infos
+
+
+def compare_states(domain: str, task: str, physics, observations, *, to_dm: Callable | None = None,
+                   count: int = 8, atol: float = 1e-4) -> float:
+    """Asserts that dm_control observes ``observations`` (a batch, e.g. of resets computed on MJX) on the
+    batch's first ``count`` states ``physics`` (an ``mjx.Data`` batch): qpos and qvel are copied into
+    dm_control's physics, ``to_dm(physics_dm, data_i)`` copies task state kept elsewhere (mocap targets
+    into the model), then dm_control forwards. Returns the largest absolute deviation.
+    """
+    env = dm_env(domain, task, 0)
+    env.reset()
+    worst = 0.0
+    for i in range(count):
+        data_i = jax.tree.map(lambda x: np.asarray(x[i]), physics)
+        env.physics.data.qpos[:] = data_i.qpos
+        env.physics.data.qvel[:] = data_i.qvel
+        if to_dm is not None:
+            to_dm(env.physics, data_i)
+        env.physics.forward()
+        for k, v in env.task.get_observation(env.physics).items():
+            ours = np.asarray(observations[k][i], np.float64)
+            np.testing.assert_allclose(ours.ravel(), np.asarray(v, np.float64).ravel(), atol=atol, rtol=1e-4,
+                                       err_msg=f"{domain}/{task} observation {k} of reset state {i}")
+            worst = max(worst, float(np.max(np.abs(ours.ravel() - np.asarray(v, np.float64).ravel()))))
+    return worst
+
+
+def check_episode_length_and_timestep(domain: str, task: str) -> None:
+    """``arena.max_episode_steps`` and the dynamics' timestep equal dm_control's step limit and control
+    timestep for the task."""
+    arena = jarena.build_arena(f"dmc|domain:{domain},task:{task}")
+    env = dm_env(domain, task, 0)
+    assert arena.max_episode_steps == env._step_limit
+    assert np.isclose(arena.dynamics.timestep, env.control_timestep(), rtol=1e-9, atol=0)
+    assert arena.dynamics.render.model.opt.timestep == env.physics.model.opt.timestep
 
 
 def compare_sensors(domain: str, task: str, sensors: Sequence[str], *, state: Callable | None = None,

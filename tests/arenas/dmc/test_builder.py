@@ -36,3 +36,14 @@ def test_solver_iterations_are_a_build_option():
     assert model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
     with pytest.raises(ValueError, match="unknown integrator 'rk5'; MJX runs euler, rk4, implicitfast"):
         jarena.build_arena("dmc|domain:cartpole,task:balance,integrator:rk5")
+
+
+def test_device_models_asked_for_inside_a_trace_are_concrete():
+    """A cached MJX model first requested while tracing must not hold (and later leak) that trace's tracers."""
+    import jax
+
+    from jarena.arenas.dmc import common
+    common.device_model.cache_clear()
+    jax.jit(lambda x: x + common.device_model("pendulum").body_mass.sum())(1.0)
+    assert not isinstance(common.device_model("pendulum").body_mass, jax.core.Tracer)
+    jax.jit(lambda x: x * common.device_model("pendulum").body_mass.sum())(2.0)  # a second trace reuses it
