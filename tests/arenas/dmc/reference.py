@@ -92,7 +92,7 @@ def compare(domain: str, task: str, *, seeds=range(3), states_per_seed: int = 4,
                 state(rng, env.physics)
             if adjust is not None:
                 adjust(rng, env.physics)
-                env.physics.forward()
+            env.physics.forward()
             expected_obs = env.task.get_observation(env.physics)
             expected_reward = env.task.get_reward(env.physics)
             obs, reward = ours(to_mjx(model, env.physics, sync))
