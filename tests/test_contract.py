@@ -13,7 +13,7 @@ import pytest
 import jarena
 from jarena.testing import CHECKS
 
-MUJOCO_SAMPLE = ["dmc|domain:cartpole,task:swingup"]
+MUJOCO_SAMPLE = ["dmc|domain:point_mass,task:easy"]
 LISTED = jarena.list_arenas() if os.environ.get("JARENA_FULL_CONTRACT") else (
     [a for a in jarena.list_arenas() if a.startswith("classic|")] + MUJOCO_SAMPLE)
 ARENAS = LISTED + [
