@@ -61,6 +61,10 @@ def _kill_after(proc, line_test):
     finally:
         proc.send_signal(signal.SIGKILL)
         proc.wait()
+    # Commits printed before the kill but not yet read (the writer may run ahead of this reader).
+    for line in proc.stdout:
+        if line.startswith("COMMITTED"):
+            last = int(line.split()[1])
     return last
 
 
