@@ -129,24 +129,18 @@ def playground_loop(env: str, batch: int):
     from mujoco_playground import wrapper
     penv = _playground_env(ENVS[env]["playground"])
     wrapped = wrapper.wrap_for_brax_training(penv, episode_length=1000, action_repeat=1)
-    dim = penv.action_size
-
-    def init(key):
-        return wrapped.reset(jax.random.key_data(jax.random.split(key, batch))), key  # raw uint32 keys
-
-    def body(carry, t):
-        state, key = carry
-        return wrapped.step(state, _random_actions(key, t, batch, dim)), key
-
-    return init, body
+    return _wrapped_loop(wrapped, penv.action_size, batch)
 
 
 def brax_loop(env: str, batch: int):
     from brax.envs import training
     benv = _brax_env(ENVS[env]["brax"])
     wrapped = training.wrap(benv, episode_length=1000, action_repeat=1)
-    dim = benv.action_size
+    return _wrapped_loop(wrapped, benv.action_size, batch)
 
+
+def _wrapped_loop(wrapped, dim: int, batch: int):
+    """A Brax-style batched env (``reset(keys)``, ``step(state, actions)``, auto-resetting) as (init, body)."""
     def init(key):
         return wrapped.reset(jax.random.key_data(jax.random.split(key, batch))), key  # raw uint32 keys
 

@@ -44,7 +44,8 @@ def _cmd_list(args) -> int:
 
 
 def _agent_config(args, arena) -> dict:
-    """The agent's config for ``arena`` (``--config``), with ``--set`` overrides applied by the caller.
+    """The agent's config for ``arena``: the tuned one (``--config``), or with ``--checkpoint`` the one the
+    run trained with, then the ``--set`` overrides.
 
     Planners plan with the arena they act in: their config's ``arena`` is the evaluated arena's string,
     and on arenas without a tuned config they run on their built-in defaults.
@@ -61,6 +62,11 @@ def _agent_config(args, arena) -> dict:
         config = {}
     if planner:
         config["arena"] = args.arena
+    checkpoint = getattr(args, "checkpoint", None)
+    saved = Path(checkpoint or "", "config.json")
+    if checkpoint and saved.is_file():
+        config = json.loads(saved.read_text()).get("config") or config  # the config the run trained with
+    config.update(dict(args.set or []))
     return config
 
 
@@ -72,10 +78,6 @@ def _cmd_evaluate(args) -> int:
 
     arena = jarena.build_arena(args.arena)
     config = _agent_config(args, arena)
-    saved = Path(args.checkpoint or "", "config.json")
-    if args.checkpoint and saved.is_file():
-        config = json.loads(saved.read_text()).get("config") or config  # the config the run trained with
-    config.update(dict(args.set or []))
     agent = jarena_agents.build_agent(args.agent, config)
     agent_state = None
     if args.checkpoint:
@@ -131,7 +133,6 @@ def _cmd_train(args) -> int:
 
     arena = jarena.build_arena(args.arena)
     config = _agent_config(args, arena)
-    config.update(dict(args.set or []))
     if args.steps is not None:
         config["total_steps"] = args.steps
     agent = jarena_agents.build_agent(args.agent, config)
@@ -168,7 +169,6 @@ def _cmd_collect(args) -> int:
         raise ValueError("--append and --overwrite exclude each other: add to the dataset, or replace it")
     arena = jarena.build_arena(args.arena)
     config = _agent_config(args, arena)
-    config.update(dict(args.set or []))
     agent = jarena_agents.build_agent(args.agent, config)
     exists = Path(args.out, "zarr.json").is_file()
     if exists and not (args.append or args.overwrite):
@@ -207,10 +207,6 @@ def _cmd_render(args) -> int:
     arena = jarena.build_arena(args.arena)
     renderer(arena)  # a clear error before the agent is built
     config = _agent_config(args, arena)
-    saved = Path(args.checkpoint or "", "config.json")
-    if args.checkpoint and saved.is_file():
-        config = json.loads(saved.read_text()).get("config") or config  # the config the run trained with
-    config.update(dict(args.set or []))
     agent = jarena_agents.build_agent(args.agent, config)
     agent_state = _restore_policy(agent, arena, args.checkpoint) if args.checkpoint else None
     camera = int(args.camera) if args.camera.lstrip("-").isdigit() else args.camera

@@ -74,14 +74,7 @@ def _balance(sparse: bool, name: str) -> Task:
         return data.replace(qpos=data.qpos.at[joints].set(jax.random.uniform(key, (2,), minval=-jnp.pi,
                                                                              maxval=jnp.pi)))
 
-    def reset(key, data, outcome, params):
-        return outcome.replace(success=_success(data)), ()
-
-    def update(state, outcome, transition, params):
-        data = transition.physics
-        return outcome.replace(reward=outcome.reward + reward(data, sparse), success=_success(data)), state
-
-    return Task(update=update, reset=reset, initialize=initialize, name=name)
+    return common.suite_task(name, lambda data: reward(data, sparse), initialize, success=_success)
 
 
 def swingup() -> Task:

@@ -81,14 +81,7 @@ def _balance(swing_up: bool, sparse: bool, name: str) -> Task:
             qpos = qpos.at[1:].set(jax.random.uniform(k_hinge, (nv - 1,), minval=-0.034, maxval=0.034))
         return data.replace(qpos=qpos, qvel=0.01 * jax.random.normal(k_vel, (nv,)))
 
-    def reset(key, data, outcome, params):
-        return outcome.replace(success=_success(data)), ()
-
-    def update(state, outcome, transition, params):
-        data = transition.physics
-        return outcome.replace(reward=outcome.reward + reward(data, sparse), success=_success(data)), state
-
-    return Task(update=update, reset=reset, initialize=initialize, name=name)
+    return common.suite_task(name, lambda data: reward(data, sparse), initialize, success=_success)
 
 
 def balance() -> Task:

@@ -90,10 +90,7 @@ def initialize(key, data, dynamics_params, params):
 
 
 def run() -> Task:
-    def update(state, outcome, transition, params):
-        return outcome.replace(reward=outcome.reward + reward(transition.physics)), state
-
-    return Task(update=update, initialize=initialize, name="run")
+    return common.suite_task("run", reward, initialize)
 
 
 DOMAIN = Domain(name="cheetah", dynamics=dynamics, sensor=sensor, tasks={"run": run},

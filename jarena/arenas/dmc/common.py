@@ -23,6 +23,7 @@ from mujoco import mjx
 from jarena.arenas.dmc import randomizers
 from jarena.arenas.mjx.dynamics import Names, mjx_dynamics
 from jarena.core.dynamics import Dynamics
+from jarena.core.task import Task
 
 #: MuJoCo features that MJX does not implement and that the suite's models use only for reporting.
 _MJX_UNUSED_FLAGS = (mujoco.mjtEnableBit.mjENBL_ENERGY,)
@@ -190,3 +191,21 @@ def sample_collision_free(key: jax.Array, data: mjx.Data, sample: Callable[[jax.
 
     # starts "penetrating", so the loop draws at least once (and traces ``sample`` and the check once)
     return jax.lax.while_loop(again, draw, (jnp.zeros((), jnp.int32), key, data, jnp.ones((), bool)))[2]
+
+
+def suite_task(name: str, reward: Callable, initialize: Callable | None = None,
+               success: Callable | None = None) -> Task:
+    """A suite task as a :class:`Task`: ``reward(physics)`` on the state after every control step (the
+    suite's ``get_reward``), ``success(physics)`` at reset and after every step when given (else False),
+    and ``initialize`` as the suite's ``initialize_episode`` (``Task.initialize``)."""
+
+    def reset(key, physics, outcome, params):
+        return (outcome if success is None else outcome.replace(success=success(physics))), ()
+
+    def update(state, outcome, transition, params):
+        data = transition.physics
+        outcome = outcome.replace(reward=outcome.reward + reward(data))
+        return (outcome if success is None else outcome.replace(success=success(data))), state
+
+    return Task(update=update, reset=reset, name=name,
+                **({} if initialize is None else {"initialize": initialize}))

@@ -133,10 +133,7 @@ def _initialize(swim: bool):
 
 
 def _fish(swim: bool, name: str) -> Task:
-    def update(state, outcome, transition, params):
-        return outcome.replace(reward=outcome.reward + reward(transition.physics, swim)), state
-
-    return Task(update=update, initialize=_initialize(swim), name=name)
+    return common.suite_task(name, lambda data: reward(data, swim), _initialize(swim))
 
 
 def upright_task() -> Task:

@@ -80,10 +80,7 @@ def initialize(key, data, dynamics_params, params):
 
 
 def _hopper(hopping: bool, name: str) -> Task:
-    def update(state, outcome, transition, params):
-        return outcome.replace(reward=outcome.reward + reward(transition.physics, hopping)), state
-
-    return Task(update=update, initialize=initialize, name=name)
+    return common.suite_task(name, lambda data: reward(data, hopping), initialize)
 
 
 def stand() -> Task:

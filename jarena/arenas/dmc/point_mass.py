@@ -66,14 +66,7 @@ def easy() -> Task:
         qpos = common.randomize_limited_and_rotational_joints(key, common.load_model("point_mass"), data.qpos)
         return data.replace(qpos=qpos)
 
-    def reset(key, data, outcome, params):
-        return outcome.replace(success=_success(data)), ()
-
-    def update(state, outcome, transition, params):
-        data = transition.physics
-        return outcome.replace(reward=outcome.reward + reward(data), success=_success(data)), state
-
-    return Task(update=update, reset=reset, initialize=initialize, name="easy")
+    return common.suite_task("easy", reward, initialize, success=_success)
 
 
 DOMAIN = Domain(name="point_mass", dynamics=dynamics, sensor=sensor, tasks={"easy": easy},

@@ -106,10 +106,7 @@ def initialize(key, data, dynamics_params, params):
 
 
 def swimmer6() -> Task:
-    def update(state, outcome, transition, params):
-        return outcome.replace(reward=outcome.reward + reward(transition.physics)), state
-
-    return Task(update=update, initialize=initialize, name="swimmer6")
+    return common.suite_task("swimmer6", reward, initialize)
 
 
 DOMAIN = Domain(name="swimmer", dynamics=dynamics, sensor=sensor, tasks={"swimmer6": swimmer6},

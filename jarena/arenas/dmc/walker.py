@@ -83,10 +83,7 @@ def initialize(key, data, dynamics_params, params):
 
 
 def _walker(move_speed: float, name: str) -> Task:
-    def update(state, outcome, transition, params):
-        return outcome.replace(reward=outcome.reward + reward(transition.physics, move_speed)), state
-
-    return Task(update=update, initialize=initialize, name=name)
+    return common.suite_task(name, lambda data: reward(data, move_speed), initialize)
 
 
 def stand() -> Task:
