@@ -1,3 +1,8 @@
 """Scripted oracle agents that read privileged simulator state."""
 
-from jarena_agents.oracles import cartpole, pendulum, point_mass  # noqa: F401  (registers the oracles)
+from jarena_agents.oracles import (  # noqa: F401  (registers the oracles)
+    cartpole,
+    dmc_cartpole,
+    pendulum,
+    point_mass,
+)
