@@ -9,9 +9,10 @@ variants so that load changes weigh on all alike. Variants:
   action written to ``ctrl``: physics only (no observation, reward, termination or reset).
 - ``ours``: ``jarena.batch_step``: the full arena step (observation, reward, time limit, auto-reset).
 - ``ours-pg-options`` (dmc only): ours built with the simulation options of Playground's version of the
-  model (build options ``iterations``, ``ls_iterations``, ``integrator``, ``eulerdamp``): Playground
-  trades the suite's accuracy for speed (1-4 solver iterations, Euler instead of RK4, no implicit
-  damping); this variant does the same physics work as the ``playground`` variant.
+  model (build options ``iterations``, ``ls_iterations``, ``integrator``, ``eulerdamp``, ``timestep``,
+  ``max_contact_points``, ``max_geom_pairs``): Playground trades the suite's accuracy for speed (1-4
+  solver iterations, Euler instead of RK4, no implicit damping, a longer timestep for humanoid, MJX
+  contact culling); this variant does the same physics work as the ``playground`` variant.
 - ``playground``: mujoco_playground's equivalent environment on MJX (``impl="jax"``, not Warp), with
   its Brax-training wrapper (episode length 1000, auto-reset), as Playground's trainers step it.
 - ``ours-noreset`` and ``ours-select`` (diagnostics): the arena step without auto-reset, and with the
@@ -157,8 +158,13 @@ def playground_options(env: str) -> str:
     model = _playground_env(ENVS[env]["playground"]).mj_model
     integrator = {int(v): k for k, v in jarena.arenas.dmc.common.INTEGRATORS.items()}[int(model.opt.integrator)]
     eulerdamp = not (model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP))
-    return (f"iterations:{model.opt.iterations},ls_iterations:{model.opt.ls_iterations},integrator:{integrator},"
-            f"eulerdamp:{str(eulerdamp).lower()}")
+    options = (f"iterations:{model.opt.iterations},ls_iterations:{model.opt.ls_iterations},integrator:{integrator},"
+               f"eulerdamp:{str(eulerdamp).lower()},timestep:{float(model.opt.timestep)!r}")
+    for name in jarena.arenas.dmc.common.CONTACT_LIMITS:  # MJX contact culling, where Playground's model sets it
+        index = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, name)
+        if index >= 0:
+            options += f",{name}:{int(model.numeric_data[model.numeric_adr[index]])}"
+    return options
 
 
 def fewer_iters_loop(env: str, batch: int):

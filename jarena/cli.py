@@ -100,6 +100,23 @@ def _cmd_evaluate(args) -> int:
     return 0
 
 
+def _trained_arena(run_dir: Path, arena):
+    """The arena a run trained on (its ``config.json``), whose batch state the checkpoint holds; ``arena``
+    when it is the same or unknown. A policy trained on one arena may act in another with the same
+    observation and action specs (e.g. trained with fast solver options, evaluated on the suite's)."""
+    import jarena
+
+    saved = run_dir / "config.json"
+    built_from = json.loads(saved.read_text()).get("arena") if saved.is_file() else None
+    if not built_from or built_from in (arena.build_string, arena.name):
+        return arena
+    trained_on = jarena.build_arena(built_from)
+    if trained_on.spec != arena.spec:
+        raise ValueError(f"the run in {run_dir} trained on {built_from!r}, whose observation and action specs "
+                         f"differ from {arena.build_string or arena.name!r}'s:\n  {trained_on.spec}\n  {arena.spec}")
+    return trained_on
+
+
 def _restore_policy(agent, arena, run_dir: str):
     """The deterministic policy of the latest checkpoint in ``run_dir`` (or its checkpoints/ folder)."""
     import jax
@@ -113,7 +130,8 @@ def _restore_policy(agent, arena, run_dir: str):
     checkpointer = Checkpointer(folder)
     if checkpointer.latest_step() is None:
         raise FileNotFoundError(f"no checkpoint found in {folder}")
-    template = jax.jit(agent.init_training, static_argnums=1)(jax.random.key(0), arena)
+    trained_on = _trained_arena(path, arena)
+    template = jax.jit(agent.init_training, static_argnums=1)(jax.random.key(0), trained_on)
     try:
         train_state, _ = checkpointer.restore(template)
     except Exception as e:  # orbax raises several types for a mismatched or damaged checkpoint

@@ -7,6 +7,19 @@ import os
 _FLAG = "--xla_cpu_multi_thread_eigen=false"
 
 
+def default_headless_gl() -> None:
+    """Selects MuJoCo's headless EGL rendering (``MUJOCO_GL=egl``) unless the user chose a backend.
+
+    MuJoCo picks its OpenGL backend when ``mujoco`` is first imported, so this runs when jarena is
+    imported, before any arena imports mujoco. Only on Linux, where EGL is the headless backend (GPU
+    machines and CPU-only servers alike); elsewhere MuJoCo's default (the desktop's GL) stays.
+    """
+    import sys
+
+    if sys.platform.startswith("linux"):
+        os.environ.setdefault("MUJOCO_GL", "egl")
+
+
 def avoid_cpu_eigen_deadlock(force: bool = False) -> bool:
     """Turns off XLA:CPU's multi-threaded Eigen kernels on machines with at most 2 CPUs (or ``force``).
 

@@ -14,6 +14,7 @@ import dataclasses
 import json
 import math
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -145,6 +146,14 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
         from jarena.render.frames import can_render
 
         videos = min(int(eval_videos), arena.num_eval_episodes) if can_render(arena) else 0
+        if videos:
+            from jarena.render.frames import RenderError
+            from jarena.render.record import check_video
+            try:
+                check_video(arena)
+            except RenderError as e:  # the trained agent's evaluation matters more than its videos
+                warnings.warn(f"evaluating without videos: {e}", stacklevel=2)
+                videos = 0
     evaluation = evaluate(agent, arena, jax.random.key(0), agent_state=agent.policy(train_state, arena.spec, True),
                           videos=videos, video_dir=run_path / "videos" if videos else None)
     if run_path is not None:

@@ -45,15 +45,17 @@ class ActorCritic(nn.Module):
     """Separate policy and value MLPs. Returns ``(policy outputs, value)``.
 
     Policy outputs: logits (*, n) for Discrete actions; mean (*, d) for Box actions, with a learned
-    state-independent log standard deviation.
+    state-independent log standard deviation. ``value_hidden`` sizes the value MLP (default: ``hidden``).
     """
 
     action_spec: Spec
     hidden: Sequence[int] = (64, 64)
+    value_hidden: Sequence[int] | None = None
 
     @nn.compact
     def __call__(self, x):
-        value = MLP(self.hidden, 1, output_scale=1.0, name="critic")(x)[..., 0]
+        value_hidden = self.hidden if self.value_hidden is None else self.value_hidden
+        value = MLP(value_hidden, 1, output_scale=1.0, name="critic")(x)[..., 0]
         if isinstance(self.action_spec, Discrete):
             return MLP(self.hidden, self.action_spec.n, output_scale=0.01, name="actor")(x), value
         dim = int(np.prod(self.action_spec.shape))

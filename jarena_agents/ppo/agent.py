@@ -49,6 +49,7 @@ class PPOConfig:
     value_coef: float = 0.5
     max_grad_norm: float = 0.5
     hidden: tuple = (64, 64)
+    value_hidden: tuple | None = None  # the value MLP's layers (default: ``hidden``)
     normalize_observations: bool = False
     reward_scale: float = 1.0
 
@@ -94,7 +95,8 @@ def make_ppo(config=None) -> Agent:
 
     def network(spec: ArenaSpec):
         networks.check_supported(spec.action, "ppo")
-        return networks.ActorCritic(spec.action, tuple(cfg.hidden))
+        return networks.ActorCritic(spec.action, tuple(cfg.hidden),
+                                    None if cfg.value_hidden is None else tuple(cfg.value_hidden))
 
     def optimizer():
         lr = cfg.learning_rate

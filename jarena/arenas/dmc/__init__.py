@@ -59,7 +59,9 @@ DOMAINS: Mapping[str, Domain] = _Domains()
 
 def build(domain: str, task: Any = None, action: Any = None, time_limit: int | None = None, wrap: Any = None,
           eval_episodes: int | None = None, val_episodes: int | None = None, iterations: int | None = None,
-          ls_iterations: int | None = None, integrator: str | None = None, eulerdamp: bool | None = None) -> Arena:
+          ls_iterations: int | None = None, integrator: str | None = None, eulerdamp: bool | None = None,
+          timestep: float | None = None, max_contact_points: int | None = None, max_geom_pairs: int | None = None
+          ) -> Arena:
     """Builds a DeepMind Control Suite arena on MJX.
 
     Args:
@@ -69,14 +71,15 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
       time_limit: episode length in control steps (default: the suite's, 1000 for most tasks).
       wrap: task transforms after the time limit, e.g. ``reward_scale(0.1)``.
       eval_episodes, val_episodes: sizes of the evaluation and validation splits.
-      iterations, ls_iterations, integrator, eulerdamp: MuJoCo simulation options (default: the suite
-        model's): fewer solver iterations, ``integrator:euler`` and ``eulerdamp:false`` are faster on
-        MJX and less exact, as mujoco_playground's models (see ``common.with_options``).
+      iterations, ls_iterations, integrator, eulerdamp, timestep, max_contact_points, max_geom_pairs: MuJoCo
+        simulation options (default: the suite model's): fewer solver iterations, ``integrator:euler``,
+        ``eulerdamp:false``, a longer physics ``timestep`` (s) and MJX contact culling are faster on MJX
+        and less exact, as mujoco_playground's models (see ``common.with_options``).
     """
     if domain in UNSUPPORTED:
         raise NotImplementedError(f"dmc domain {domain!r} cannot run on MJX: {UNSUPPORTED[domain]}")
     domains = DOMAINS
-    options = (iterations, ls_iterations, integrator, eulerdamp)
+    options = (iterations, ls_iterations, integrator, eulerdamp, timestep, max_contact_points, max_geom_pairs)
     if any(o is not None for o in options) and domain in SUITE:
         from jarena.arenas.dmc import common
         dom = DOMAINS[domain]

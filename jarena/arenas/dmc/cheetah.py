@@ -74,19 +74,26 @@ def initialize(key, data, dynamics_params, params):
     dm_control resets to ``qpos0`` (forwarded), writes the random joints and calls ``physics.step(200)``:
     its first step integrates with the kinematics of ``qpos0``. Each iteration here is that order
     (``mj_step1`` then ``mj_step2``), with the random joints written after the first ``mj_step1``.
+
+    The settling runs on the suite's model (its solver and contacts) whatever simulation options the
+    arena was built with, and only the state variables (qpos, qvel, act, the solver's warm start) are
+    handed back into ``data``: the arena's own model may size its contact arrays differently (MJX
+    contact culling).
     """
     m = apply_params(_device_model(), dynamics_params)
     adr, values = draw_limited_joints(key)
     randomized = data.qpos.at[adr].set(values)
-    start = data.replace(qpos=jnp.asarray(common.load_model("cheetah").qpos0, data.qpos.dtype),
-                         qvel=jnp.zeros_like(data.qvel), ctrl=jnp.zeros_like(data.ctrl))
+    model = common.load_model("cheetah")
+    start = mjx.make_data(model).replace(qpos=jnp.asarray(model.qpos0, data.qpos.dtype),
+                                         qacc_warmstart=data.qacc_warmstart, act=data.act)
 
     def step(i, d):
         d = observe_state(m, d)
         return integrate(m, d.replace(qpos=jnp.where(i == 0, randomized, d.qpos)))
 
     settled = jax.lax.fori_loop(0, _SETTLE_STEPS, step, start)
-    return settled.replace(time=jnp.zeros_like(settled.time))
+    return data.replace(qpos=settled.qpos, qvel=settled.qvel, act=settled.act, ctrl=jnp.zeros_like(data.ctrl),
+                        qacc_warmstart=settled.qacc_warmstart, time=jnp.zeros_like(data.time))
 
 
 def run() -> Task:

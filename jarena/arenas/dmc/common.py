@@ -68,10 +68,25 @@ def load_model(domain: str, *args, edit: Callable[[str], str] | None = None) -> 
     xml, assets = suite_xml(domain, *args)
     if edit is not None:
         xml = edit(xml)
-    model = mujoco.MjModel.from_xml_string(xml, assets)
+    model = mujoco.MjModel.from_xml_string(_with_contact_limits(xml), assets)
     for flag in _MJX_UNUSED_FLAGS:
         model.opt.enableflags &= ~int(flag)
     return model
+
+
+#: MJX's contact-culling settings (custom numerics read by ``mjx.put_model``; -1: no limit).
+CONTACT_LIMITS = ("max_contact_points", "max_geom_pairs")
+
+
+def _with_contact_limits(xml: str) -> str:
+    """``xml`` with MJX's contact-culling numerics declared as -1 (no limit, MJX's behaviour when they are
+    absent), so that ``with_options`` can set them on the compiled model. Numerics are user data:
+    MuJoCo's simulation is unchanged."""
+    numerics = "".join(f'<numeric name="{n}" data="-1"/>' for n in CONTACT_LIMITS)
+    head, sep, tail = xml.rpartition("</mujoco>")
+    if not sep:
+        raise ValueError("not an MJCF model: no closing </mujoco>")
+    return f"{head}<custom>{numerics}</custom>{sep}{tail}"
 
 
 def replace_once(xml: str, old: str, new: str) -> str:
@@ -117,24 +132,49 @@ INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "rk4": mujoco.mjtInteg
                "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST}
 
 
+def _positive_int(name: str, value) -> int:
+    if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return value
+
+
 @functools.cache
 def with_options(dynamics: Dynamics, iterations: int | None = None, ls_iterations: int | None = None,
-                 integrator: str | None = None, eulerdamp: bool | None = None) -> Dynamics:
+                 integrator: str | None = None, eulerdamp: bool | None = None, timestep: float | None = None,
+                 max_contact_points: int | None = None, max_geom_pairs: int | None = None) -> Dynamics:
     """``dynamics`` with MuJoCo simulation options changed (cached); ``None`` keeps the model's value.
 
     The suite's models allow 100 solver and 50 line-search iterations (MJX stops early at the solver's
     tolerance, but a batch waits for its slowest arena); some use RK4 and implicit Euler damping.
-    mujoco_playground's versions of these models use 1-4 solver iterations, Euler and no Euler damping:
-    faster on MJX, less exact. Args: ``iterations`` and ``ls_iterations`` (positive ints),
-    ``integrator`` (one of ``INTEGRATORS``), ``eulerdamp`` (implicit joint damping in Euler steps).
+    mujoco_playground's versions of these models use 1-4 solver iterations, Euler, no Euler damping, a
+    longer physics timestep for some (humanoid) and MJX's contact culling: faster on MJX, less exact.
+
+    Args:
+      iterations, ls_iterations: solver and line-search iterations (positive ints).
+      integrator: one of ``INTEGRATORS``. eulerdamp: implicit joint damping in Euler steps.
+      timestep: physics timestep (s); it must divide the control timestep, which stays the suite's (the
+        number of physics steps per control step changes instead).
+      max_contact_points, max_geom_pairs: MJX contact culling (positive ints): keep only the closest
+        this many contacts per collision function, and geom pairs per pair type.
     """
     from jarena.arenas.mjx.render import renderer_for
     model = copy.copy(dynamics.render.model)
     for name, value in (("iterations", iterations), ("ls_iterations", ls_iterations)):
         if value is not None:
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-                raise ValueError(f"{name} must be a positive integer, got {value!r}")
-            setattr(model.opt, name, value)
+            setattr(model.opt, name, _positive_int(name, value))
+    for name, value in (("max_contact_points", max_contact_points), ("max_geom_pairs", max_geom_pairs)):
+        if value is not None:
+            index = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, name)
+            if index < 0:
+                raise ValueError(f"{dynamics.name}'s model has no {name} numeric (not loaded by load_model)")
+            model.numeric_data[model.numeric_adr[index]] = _positive_int(name, value)
+    if timestep is not None:
+        if isinstance(timestep, bool) or not isinstance(timestep, (int, float)) or timestep <= 0:
+            raise ValueError(f"timestep must be a positive number of seconds, got {timestep!r}")
+        ratio = dynamics.timestep / timestep
+        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+            raise ValueError(f"timestep {timestep} s must divide the control timestep {dynamics.timestep:g} s")
+        model.opt.timestep = float(timestep)
     if integrator is not None:
         if integrator not in INTEGRATORS:
             raise ValueError(f"unknown integrator {integrator!r}; MJX runs {', '.join(INTEGRATORS)}")

@@ -5,7 +5,9 @@ from __future__ import annotations
 import atexit
 import os
 
-os.environ.setdefault("MUJOCO_GL", "egl")  # headless by default; must precede mujoco's GL import
+from jarena.platform import default_headless_gl  # noqa: E402
+
+default_headless_gl()  # must precede mujoco's GL import
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402

@@ -38,6 +38,28 @@ def test_solver_iterations_are_a_build_option():
         jarena.build_arena("dmc|domain:cartpole,task:balance,integrator:rk5")
 
 
+def test_timestep_and_contact_culling_are_build_options():
+    from mujoco import mjx
+    suite = jarena.build_arena("dmc|domain:walker,task:walk")
+    fast = jarena.build_arena("dmc|domain:walker,task:walk,timestep:0.005,max_contact_points:4,max_geom_pairs:2")
+    model = fast.dynamics.render.model
+    assert model.opt.timestep == pytest.approx(0.005)
+    assert fast.dynamics.timestep == pytest.approx(suite.dynamics.timestep) == pytest.approx(0.025)
+    # MJX sizes the contact arrays from the culling numerics: fewer contact slots per step
+    full_slots = mjx.make_data(suite.dynamics.render.model).contact.dist.shape[0]
+    culled_slots = mjx.make_data(model).contact.dist.shape[0]
+    assert culled_slots < full_slots
+    # stepping: 5 physics steps of 5 ms per 25 ms control step instead of 10 of 2.5 ms
+    import jax
+    state, _ = fast.reset(jax.random.key(0))
+    stepped, _ = jax.jit(fast.step)(state, jax.numpy.zeros(fast.spec.action.shape))
+    assert float(stepped.physics.time) == pytest.approx(0.025)
+    with pytest.raises(ValueError, match="timestep 0.01 s must divide the control timestep 0.025 s"):
+        jarena.build_arena("dmc|domain:walker,task:walk,timestep:0.01")
+    with pytest.raises(ValueError, match="max_contact_points must be a positive integer"):
+        jarena.build_arena("dmc|domain:walker,task:walk,max_contact_points:0")
+
+
 def test_device_models_asked_for_inside_a_trace_are_concrete():
     """A cached MJX model first requested while tracing must not hold (and later leak) that trace's tracers."""
     import jax
@@ -47,3 +69,18 @@ def test_device_models_asked_for_inside_a_trace_are_concrete():
     jax.jit(lambda x: x + common.device_model("pendulum").body_mass.sum())(1.0)
     assert not isinstance(common.device_model("pendulum").body_mass, jax.core.Tracer)
     jax.jit(lambda x: x * common.device_model("pendulum").body_mass.sum())(2.0)  # a second trace reuses it
+
+
+@pytest.mark.parametrize("domain", sorted(dmc.SUITE))
+def test_resets_fit_the_arenas_model_under_contact_culling(domain):
+    """Task initializers that simulate (cheetah's settling) or test collisions on the suite's model must
+    return physics shaped as the arena's own (culled) model's, or batches cannot mix stepped and reset
+    arenas (traced only: ``jax.eval_shape``)."""
+    import jax
+
+    arena = jarena.build_arena(f"dmc|domain:{domain},max_contact_points:2,max_geom_pairs:1")
+    state, _ = jax.eval_shape(arena.reset, jax.random.key(0))
+    stepped, _ = jax.eval_shape(arena.step, state, arena.spec.action.zeros())
+    assert jax.tree.structure(state) == jax.tree.structure(stepped)
+    for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(stepped)):
+        assert (a.shape, a.dtype) == (b.shape, b.dtype)
