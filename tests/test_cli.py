@@ -112,3 +112,22 @@ def test_planners_plan_in_the_arena_they_are_evaluated_on(capsys):
                  "--set", "samples=16", "--set", "horizon=5"]) == 0
     out = capsys.readouterr().out
     assert "point_mass" in out and "success rate" in out
+
+
+def test_checkpoints_restore_on_the_arena_they_trained_on(tmp_path):
+    """A run's checkpoint holds its arenas' batch state, so it is restored against the arena named in the
+    run's config.json; evaluating on another arena with the same specs is allowed, other specs are not."""
+    import json
+
+    import jarena
+    from jarena.cli import _trained_arena
+
+    evaluated = jarena.build_arena("classic|domain:cartpole")
+    (tmp_path / "config.json").write_text(json.dumps({"agent": "ppo", "arena": "classic|domain:cartpole,time_limit:50"}))
+    trained_on = _trained_arena(tmp_path, evaluated)
+    assert trained_on.build_string == "classic|domain:cartpole,time_limit:50" and trained_on is not evaluated
+    (tmp_path / "config.json").write_text(json.dumps({"agent": "ppo", "arena": "classic|domain:cartpole"}))
+    assert _trained_arena(tmp_path, evaluated) is evaluated
+    (tmp_path / "config.json").write_text(json.dumps({"agent": "ppo", "arena": "classic|domain:pendulum"}))
+    with pytest.raises(ValueError, match="observation and action specs differ"):
+        _trained_arena(tmp_path, evaluated)

@@ -90,3 +90,23 @@ def test_interrupted_and_resumed_run_equals_uninterrupted(cartpole, tmp_path):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(whole.evaluation.returns, resumed.evaluation.returns)
     assert [h["episode_return"] for h in whole.history] == [h["episode_return"] for h in resumed.history]
+
+
+def test_a_run_that_cannot_render_evaluates_without_videos(cartpole, tmp_path, monkeypatch):
+    """No OpenGL in the process (mujoco raises a FatalError when it makes a context): the trained agent is
+    still evaluated and its results written; only the videos are skipped, with a warning naming the fix."""
+    import jarena.render.record as record
+
+    def no_gl(arena):
+        def render(*args, **kwargs):
+            raise RuntimeError("an OpenGL platform library has not been loaded into this process")
+        return render
+
+    monkeypatch.setattr(record, "renderer", no_gl)
+    agent = jarena_agents.build_agent("ppo", {"num_arenas": 4, "rollout_length": 16, "minibatches": 2,
+                                              "total_steps": 128})
+    with pytest.warns(UserWarning, match="evaluating without videos: .*MUJOCO_GL=egl"):
+        result = train_and_evaluate(agent, cartpole, jax.random.key(0), validate_every=0, progress=False,
+                                    run_dir=tmp_path)
+    assert result.evaluation is not None and (tmp_path / "evaluation.json").is_file()
+    assert not (tmp_path / "videos").exists()
