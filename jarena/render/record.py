@@ -60,9 +60,11 @@ def check_video(arena: Arena, options: VideoOptions | None = None, params: Arena
         raise RenderError(f"arena {arena.build_string or arena.name!r} cannot render a {options.width} x "
                           f"{options.height} frame from camera {options.camera!r}: {e}") from None
     except Exception as e:  # mujoco.FatalError and GL errors: no usable OpenGL context in this process
+        import os
         raise RenderError(f"arena {arena.build_string or arena.name!r} cannot render here: {type(e).__name__}: {e}. "
-                          "MuJoCo chooses its OpenGL backend when first imported: set MUJOCO_GL=egl (headless, "
-                          "GPU or Mesa) or MUJOCO_GL=osmesa before importing mujoco or jarena") from None
+                          "MuJoCo chooses its OpenGL backend when first imported (MUJOCO_GL is "
+                          f"{os.environ.get('MUJOCO_GL')!r} now): set MUJOCO_GL=egl (headless, needs libEGL) or "
+                          "MUJOCO_GL=osmesa before importing mujoco or jarena") from None
 
 
 def _film(arena: Arena, physics: PyTree, arenas: Sequence[int], num_states: int, path: Path, options: VideoOptions,
