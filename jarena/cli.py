@@ -34,12 +34,14 @@ def _cmd_list(args) -> int:
     from jarena.building.builder import arena_tags
 
     print("Arenas (build with jarena.build_arena(string)):")
-    for string in jarena.list_arenas(args.tag):
-        tags = ", ".join(arena_tags(string))
-        print(f"  {string:<55} [{tags}]")
+    strings = jarena.list_arenas(args.tag)
+    width = max((len(s) for s in strings), default=0)
+    for string in strings:
+        print(f"  {string:<{width}}  [{', '.join(arena_tags(string))}]")
     print("\nAgents (build with jarena_agents.build_agent(name)):")
+    width = max((len(entry.name) for entry in jarena_agents.AGENTS), default=0)
     for entry in jarena_agents.AGENTS:
-        print(f"  {entry.name:<20} [{', '.join(entry.tags)}]")
+        print(f"  {entry.name:<{width}}  [{', '.join(entry.tags)}]")
     return 0
 
 
