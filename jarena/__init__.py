@@ -8,11 +8,8 @@ composable transforms; everything builds from a string::
     state, info = arena.reset(jax.random.key(0))
 """
 
-from jarena.platform import default_headless_gl as _default_headless_gl
-
-_default_headless_gl()  # before any arena imports mujoco
-
-from jarena import arenas as _arenas  # noqa: E402, F401  (registers the built-in builders)
+from jarena import _headless  # noqa: F401, I001  (first: picks MuJoCo's headless GL before mujoco is imported)
+from jarena import arenas as _arenas  # noqa: F401  (registers the built-in builders)
 from jarena import data, tasks, testing, tools
 from jarena.building import (
     ArenaStringError,

@@ -123,7 +123,8 @@ def test_checkpoints_restore_on_the_arena_they_trained_on(tmp_path):
     from jarena.cli import _trained_arena
 
     evaluated = jarena.build_arena("classic|domain:cartpole")
-    (tmp_path / "config.json").write_text(json.dumps({"agent": "ppo", "arena": "classic|domain:cartpole,time_limit:50"}))
+    shorter = "classic|domain:cartpole,time_limit:50"
+    (tmp_path / "config.json").write_text(json.dumps({"agent": "ppo", "arena": shorter}))
     trained_on = _trained_arena(tmp_path, evaluated)
     assert trained_on.build_string == "classic|domain:cartpole,time_limit:50" and trained_on is not evaluated
     (tmp_path / "config.json").write_text(json.dumps({"agent": "ppo", "arena": "classic|domain:cartpole"}))

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import atexit
-import os
+import contextlib
 
-from jarena.platform import default_headless_gl  # noqa: E402
+import mujoco  # jarena's import chose the GL backend before this (jarena/_headless.py)
+import numpy as np
 
-default_headless_gl()  # must precede mujoco's GL import
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+def _close_at_exit(renderer: mujoco.Renderer) -> None:
+    """Frees a renderer's GL context at exit; by then EGL may already be shut down, which is harmless."""
+    with contextlib.suppress(Exception):  # OpenGL's EGLError: EGL_NOT_INITIALIZED at interpreter exit
+        renderer.close()
 
 
 class _Frames:
@@ -42,7 +44,7 @@ class _Frames:
             self.renderers[key] = mujoco.Renderer(m, height, width)
             # free the GL contexts at exit before MuJoCo's EGL display is terminated (registered on the
             # first context, so this later registration runs first); avoids errors from __del__ at exit
-            atexit.register(self.renderers[key].close)
+            atexit.register(_close_at_exit, self.renderers[key])
         renderer = self.renderers[key]
         renderer.update_scene(d, camera=camera)
         return renderer.render().copy()

@@ -82,5 +82,5 @@ def test_resets_fit_the_arenas_model_under_contact_culling(domain):
     state, _ = jax.eval_shape(arena.reset, jax.random.key(0))
     stepped, _ = jax.eval_shape(arena.step, state, arena.spec.action.zeros())
     assert jax.tree.structure(state) == jax.tree.structure(stepped)
-    for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(stepped)):
+    for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(stepped), strict=True):
         assert (a.shape, a.dtype) == (b.shape, b.dtype)
