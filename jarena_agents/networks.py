@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import flax.linen as nn
+import flax.struct
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -41,16 +42,83 @@ class MLP(nn.Module):
         return nn.Dense(self.features, kernel_init=nn.initializers.orthogonal(self.output_scale))(x)
 
 
-class ActorCritic(nn.Module):
-    """Separate policy and value MLPs. Returns ``(policy outputs, value)``.
+@flax.struct.dataclass
+class Gaussian:
+    """A diagonal Gaussian over raw actions (*, d) in normalised units; the arena gets them clipped to
+    [-1, 1] and rescaled (:func:`to_env_action`). Entropy and log-probabilities are the Gaussian's."""
 
-    Policy outputs: logits (*, n) for Discrete actions; mean (*, d) for Box actions, with a learned
-    state-independent log standard deviation. ``value_hidden`` sizes the value MLP (default: ``hidden``).
+    mean: jax.Array
+    log_std: jax.Array
+
+    def sample(self, key):
+        return self.mean + jnp.exp(self.log_std) * jax.random.normal(key, self.mean.shape)
+
+    def mode(self):
+        return self.mean
+
+    def log_prob(self, raw):
+        z = (raw - self.mean) / jnp.exp(self.log_std)
+        return jnp.sum(-0.5 * z**2 - self.log_std - 0.5 * jnp.log(2 * jnp.pi), -1)
+
+    def entropy(self):
+        return jnp.sum(self.log_std + 0.5 * jnp.log(2 * jnp.pi * jnp.e), -1)
+
+    def unit(self, raw):
+        """The action in [-1, 1]."""
+        return jnp.clip(raw, -1.0, 1.0)
+
+
+@flax.struct.dataclass
+class TanhNormal:
+    """``tanh(u)`` with ``u ~ N(mean, std)`` (Brax's PPO policy). Raw actions are the pre-tanh ``u``, so
+    log-probabilities need no ``atanh``: ``log N(u) - sum log(1 - tanh(u)^2)``. The entropy is the
+    Gaussian's plus that log-determinant at the mode ``tanh(mean)`` (Brax estimates it at a sample)."""
+
+    mean: jax.Array
+    std: jax.Array
+
+    def sample(self, key):
+        return self.mean + self.std * jax.random.normal(key, self.mean.shape)
+
+    def mode(self):
+        return self.mean
+
+    def log_prob(self, raw):
+        z = (raw - self.mean) / self.std
+        gaussian = jnp.sum(-0.5 * z**2 - jnp.log(self.std) - 0.5 * jnp.log(2 * jnp.pi), -1)
+        return gaussian - jnp.sum(_log_tanh_derivative(raw), -1)
+
+    def entropy(self):
+        gaussian = jnp.sum(jnp.log(self.std) + 0.5 * jnp.log(2 * jnp.pi * jnp.e), -1)
+        return gaussian + jnp.sum(_log_tanh_derivative(self.mean), -1)
+
+    def unit(self, raw):
+        return jnp.tanh(raw)
+
+
+def _log_tanh_derivative(u):
+    """``log(1 - tanh(u)^2)``, stably: ``2 (log 2 - u - softplus(-2 u))``."""
+    return 2.0 * (jnp.log(2.0) - u - jax.nn.softplus(-2.0 * u))
+
+
+#: Policy distributions for Box actions, by config name.
+BOX_POLICIES = ("gaussian", "tanh_normal")
+
+
+class ActorCritic(nn.Module):
+    """Separate policy and value MLPs. Returns ``(policy, value)``.
+
+    Policy: logits (*, n) for Discrete actions; for Box actions a :class:`Gaussian` (mean from the MLP,
+    learned state-independent log standard deviation) or, with ``box_policy="tanh_normal"``, a
+    :class:`TanhNormal` (mean and ``softplus(.) + min_std`` from the MLP, as Brax's PPO).
+    ``value_hidden`` sizes the value MLP (default: ``hidden``).
     """
 
     action_spec: Spec
     hidden: Sequence[int] = (64, 64)
     value_hidden: Sequence[int] | None = None
+    box_policy: str = "gaussian"
+    min_std: float = 1e-3
 
     @nn.compact
     def __call__(self, x):
@@ -58,10 +126,15 @@ class ActorCritic(nn.Module):
         value = MLP(value_hidden, 1, output_scale=1.0, name="critic")(x)[..., 0]
         if isinstance(self.action_spec, Discrete):
             return MLP(self.hidden, self.action_spec.n, output_scale=0.01, name="actor")(x), value
+        if self.box_policy not in BOX_POLICIES:
+            raise ValueError(f"unknown box_policy {self.box_policy!r}; choose from {', '.join(BOX_POLICIES)}")
         dim = int(np.prod(self.action_spec.shape))
+        if self.box_policy == "tanh_normal":
+            out = MLP(self.hidden, 2 * dim, output_scale=0.01, name="actor")(x)
+            return TanhNormal(out[..., :dim], jax.nn.softplus(out[..., dim:]) + self.min_std), value
         mean = MLP(self.hidden, dim, output_scale=0.01, name="actor")(x)
         log_std = self.param("log_std", nn.initializers.zeros, (dim,))
-        return (mean, jnp.broadcast_to(log_std, mean.shape)), value
+        return Gaussian(mean, jnp.broadcast_to(log_std, mean.shape)), value
 
 
 def check_supported(spec: Spec, agent: str) -> None:
@@ -75,39 +148,37 @@ def check_supported(spec: Spec, agent: str) -> None:
 def sample_action(spec: Spec, policy, key, deterministic: bool):
     """Samples (or takes the mode of) the policy; returns ``(raw action, log prob, entropy)``.
 
-    For Box actions the raw action is the Gaussian sample in normalised units; :func:`to_env_action`
-    maps it into the spec's bounds.
+    For Box actions the raw action is in the distribution's own units; :func:`to_env_action` maps it
+    into the spec's bounds.
     """
     if isinstance(spec, Discrete):
         logits = policy
         action = jnp.argmax(logits, -1) if deterministic else jax.random.categorical(key, logits)
         return action.astype(jnp.int32), log_prob(spec, policy, action), entropy(spec, policy)
-    mean, log_std = policy
-    action = mean if deterministic else mean + jnp.exp(log_std) * jax.random.normal(key, mean.shape)
-    return action, log_prob(spec, policy, action), entropy(spec, policy)
+    action = policy.mode() if deterministic else policy.sample(key)
+    return action, policy.log_prob(action), policy.entropy()
 
 
 def log_prob(spec: Spec, policy, action):
     if isinstance(spec, Discrete):
         logp = jax.nn.log_softmax(policy)
         return jnp.take_along_axis(logp, action[..., None].astype(jnp.int32), -1)[..., 0]
-    mean, log_std = policy
-    z = (action - mean) / jnp.exp(log_std)
-    return jnp.sum(-0.5 * z**2 - log_std - 0.5 * jnp.log(2 * jnp.pi), -1)
+    return policy.log_prob(action)
 
 
 def entropy(spec: Spec, policy):
     if isinstance(spec, Discrete):
         logp = jax.nn.log_softmax(policy)
         return -jnp.sum(jnp.exp(logp) * logp, -1)
-    _, log_std = policy
-    return jnp.sum(log_std + 0.5 * jnp.log(2 * jnp.pi * jnp.e), -1)
+    return policy.entropy()
 
 
-def to_env_action(spec: Spec, raw):
-    """Maps a raw policy action into the arena's action space (Box: clip to [-1, 1], rescale)."""
+def to_env_action(spec: Spec, raw, policy=None):
+    """Maps a raw policy action into the arena's action space (Box: into [-1, 1] by the policy's
+    ``unit``, clipping when no policy is given, then rescaled to the bounds)."""
     if isinstance(spec, Discrete):
         return raw
     low, high = jnp.asarray(spec.low, jnp.float32), jnp.asarray(spec.high, jnp.float32)
-    unit = jnp.clip(raw, -1.0, 1.0).reshape(raw.shape[:-1] + spec.shape)
+    unit = jnp.clip(raw, -1.0, 1.0) if policy is None else policy.unit(raw)
+    unit = unit.reshape(raw.shape[:-1] + spec.shape)
     return (low + (unit + 1.0) * 0.5 * (high - low)).astype(spec.dtype)

@@ -50,6 +50,7 @@ class PPOConfig:
     max_grad_norm: float = 0.5
     hidden: tuple = (64, 64)
     value_hidden: tuple | None = None  # the value MLP's layers (default: ``hidden``)
+    box_policy: str = "gaussian"  # or "tanh_normal" (Brax's): see networks.ActorCritic
     normalize_observations: bool = False
     reward_scale: float = 1.0
 
@@ -89,6 +90,8 @@ class PPOTrainState:
 
 def make_ppo(config=None) -> Agent:
     cfg = make_config(PPOConfig, config, agent="ppo")
+    if cfg.box_policy not in networks.BOX_POLICIES:
+        raise ValueError(f"ppo: unknown box_policy {cfg.box_policy!r}; choose from {', '.join(networks.BOX_POLICIES)}")
     if cfg.steps_per_update % cfg.minibatches:
         raise ValueError(f"ppo: num_arenas * rollout_length = {cfg.steps_per_update} must be divisible by "
                          f"minibatches = {cfg.minibatches}")
@@ -96,7 +99,7 @@ def make_ppo(config=None) -> Agent:
     def network(spec: ArenaSpec):
         networks.check_supported(spec.action, "ppo")
         return networks.ActorCritic(spec.action, tuple(cfg.hidden),
-                                    None if cfg.value_hidden is None else tuple(cfg.value_hidden))
+                                    None if cfg.value_hidden is None else tuple(cfg.value_hidden), cfg.box_policy)
 
     def optimizer():
         lr = cfg.learning_rate
@@ -117,7 +120,7 @@ def make_ppo(config=None) -> Agent:
     def act(state: PPOState, info: Info, key, privileged=None):
         policy, _ = forward(state.spec, state.params, state.observation_stats, networks.flatten_observation(info))
         raw, _, _ = networks.sample_action(state.spec.action, policy, key, state.deterministic)
-        return networks.to_env_action(state.spec.action, raw), state
+        return networks.to_env_action(state.spec.action, raw, policy), state
 
     def init_training(key, arena: Arena) -> PPOTrainState:
         key, init_key, reset_key = jax.random.split(key, 3)
@@ -142,8 +145,8 @@ def make_ppo(config=None) -> Agent:
             observation = networks.flatten_observation(info)
             policy_out, value = forward(spec, ts.params, ts.observation_stats, observation)
             raw, logp, _ = networks.sample_action(spec.action, policy_out, key, False)
-            arena_state, next_info = batch_step(arena, arena_state, networks.to_env_action(spec.action, raw),
-                                                arena_params)
+            action = networks.to_env_action(spec.action, raw, policy_out)
+            arena_state, next_info = batch_step(arena, arena_state, action, arena_params)
             final_observation = networks.flatten_observation(
                 next_info.replace(observation=next_info.final.observation, goal=next_info.final.goal))
             episode_return = episode_return + next_info.reward
