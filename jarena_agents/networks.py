@@ -28,17 +28,26 @@ def flatten_observation(info: Info, batch_dims: int = 1) -> jax.Array:
     return jnp.concatenate([x.reshape(batch + (-1,)).astype(jnp.float32) for x in leaves], axis=-1)
 
 
+#: Hidden-layer activations by config name (Brax's PPO networks use swish).
+ACTIVATIONS = {"tanh": nn.tanh, "relu": nn.relu, "swish": nn.swish}
+
+
 class MLP(nn.Module):
-    """``hidden`` tanh layers then a linear output of ``features`` (orthogonal initialisation)."""
+    """``hidden`` layers (``activation``, one of ``ACTIVATIONS``) then a linear output of ``features``
+    (orthogonal initialisation)."""
 
     hidden: Sequence[int]
     features: int
     output_scale: float = 1.0
+    activation: str = "tanh"
 
     @nn.compact
     def __call__(self, x):
+        if self.activation not in ACTIVATIONS:
+            raise ValueError(f"unknown activation {self.activation!r}; choose from {', '.join(ACTIVATIONS)}")
+        activation = ACTIVATIONS[self.activation]
         for width in self.hidden:
-            x = nn.tanh(nn.Dense(width, kernel_init=nn.initializers.orthogonal(np.sqrt(2)))(x))
+            x = activation(nn.Dense(width, kernel_init=nn.initializers.orthogonal(np.sqrt(2)))(x))
         return nn.Dense(self.features, kernel_init=nn.initializers.orthogonal(self.output_scale))(x)
 
 
@@ -111,7 +120,7 @@ class ActorCritic(nn.Module):
     Policy: logits (*, n) for Discrete actions; for Box actions a :class:`Gaussian` (mean from the MLP,
     learned state-independent log standard deviation) or, with ``box_policy="tanh_normal"``, a
     :class:`TanhNormal` (mean and ``softplus(.) + min_std`` from the MLP, as Brax's PPO).
-    ``value_hidden`` sizes the value MLP (default: ``hidden``).
+    ``value_hidden`` sizes the value MLP (default: ``hidden``); ``activation`` names both MLPs'.
     """
 
     action_spec: Spec
@@ -119,20 +128,22 @@ class ActorCritic(nn.Module):
     value_hidden: Sequence[int] | None = None
     box_policy: str = "gaussian"
     min_std: float = 1e-3
+    activation: str = "tanh"
 
     @nn.compact
     def __call__(self, x):
         value_hidden = self.hidden if self.value_hidden is None else self.value_hidden
-        value = MLP(value_hidden, 1, output_scale=1.0, name="critic")(x)[..., 0]
+        value = MLP(value_hidden, 1, output_scale=1.0, activation=self.activation, name="critic")(x)[..., 0]
         if isinstance(self.action_spec, Discrete):
-            return MLP(self.hidden, self.action_spec.n, output_scale=0.01, name="actor")(x), value
+            return MLP(self.hidden, self.action_spec.n, output_scale=0.01, activation=self.activation,
+                       name="actor")(x), value
         if self.box_policy not in BOX_POLICIES:
             raise ValueError(f"unknown box_policy {self.box_policy!r}; choose from {', '.join(BOX_POLICIES)}")
         dim = int(np.prod(self.action_spec.shape))
         if self.box_policy == "tanh_normal":
-            out = MLP(self.hidden, 2 * dim, output_scale=0.01, name="actor")(x)
+            out = MLP(self.hidden, 2 * dim, output_scale=0.01, activation=self.activation, name="actor")(x)
             return TanhNormal(out[..., :dim], jax.nn.softplus(out[..., dim:]) + self.min_std), value
-        mean = MLP(self.hidden, dim, output_scale=0.01, name="actor")(x)
+        mean = MLP(self.hidden, dim, output_scale=0.01, activation=self.activation, name="actor")(x)
         log_std = self.param("log_std", nn.initializers.zeros, (dim,))
         return Gaussian(mean, jnp.broadcast_to(log_std, mean.shape)), value
 

@@ -51,6 +51,7 @@ class PPOConfig:
     hidden: tuple = (64, 64)
     value_hidden: tuple | None = None  # the value MLP's layers (default: ``hidden``)
     box_policy: str = "gaussian"  # or "tanh_normal" (Brax's): see networks.ActorCritic
+    activation: str = "tanh"  # hidden layers: tanh, relu or swish (Brax's)
     normalize_observations: bool = False
     reward_scale: float = 1.0
 
@@ -92,6 +93,8 @@ def make_ppo(config=None) -> Agent:
     cfg = make_config(PPOConfig, config, agent="ppo")
     if cfg.box_policy not in networks.BOX_POLICIES:
         raise ValueError(f"ppo: unknown box_policy {cfg.box_policy!r}; choose from {', '.join(networks.BOX_POLICIES)}")
+    if cfg.activation not in networks.ACTIVATIONS:
+        raise ValueError(f"ppo: unknown activation {cfg.activation!r}; choose from {', '.join(networks.ACTIVATIONS)}")
     if cfg.steps_per_update % cfg.minibatches:
         raise ValueError(f"ppo: num_arenas * rollout_length = {cfg.steps_per_update} must be divisible by "
                          f"minibatches = {cfg.minibatches}")
@@ -99,7 +102,8 @@ def make_ppo(config=None) -> Agent:
     def network(spec: ArenaSpec):
         networks.check_supported(spec.action, "ppo")
         return networks.ActorCritic(spec.action, tuple(cfg.hidden),
-                                    None if cfg.value_hidden is None else tuple(cfg.value_hidden), cfg.box_policy)
+                                    None if cfg.value_hidden is None else tuple(cfg.value_hidden), cfg.box_policy,
+                                    activation=cfg.activation)
 
     def optimizer():
         lr = cfg.learning_rate

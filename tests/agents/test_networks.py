@@ -1,6 +1,7 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from jarena.core.spec import Box
 from jarena_agents import networks
@@ -50,3 +51,18 @@ def test_tanh_normal_head_acts_inside_the_bounds():
     mode, _, _ = networks.sample_action(spec, policy, None, True)
     np.testing.assert_allclose(networks.to_env_action(spec, mode, policy)[:, 0], 2 * np.tanh(policy.mean[:, 0]),
                                rtol=1e-5, atol=1e-6)
+
+
+def test_mlp_activation_is_configurable():
+    x = jnp.linspace(-3, 3, 10)[:, None]
+    outputs = {}
+    for name in networks.ACTIVATIONS:
+        mlp = networks.MLP((4,), 1, activation=name)
+        params = mlp.init(jax.random.key(0), x)  # same key: same weights, only the activation differs
+        hidden, out = params["params"]["Dense_0"], params["params"]["Dense_1"]
+        expected = networks.ACTIVATIONS[name](x @ hidden["kernel"] + hidden["bias"]) @ out["kernel"] + out["bias"]
+        outputs[name] = mlp.apply(params, x)
+        np.testing.assert_allclose(outputs[name], expected, rtol=1e-5, atol=1e-6)
+    assert not np.allclose(outputs["tanh"], outputs["swish"])
+    with pytest.raises(ValueError, match="unknown activation 'gelu'; choose from tanh, relu, swish"):
+        networks.MLP((4,), 1, activation="gelu").init(jax.random.key(0), x)

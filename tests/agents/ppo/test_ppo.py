@@ -112,10 +112,12 @@ def test_a_run_that_cannot_render_evaluates_without_videos(cartpole, tmp_path, m
     assert not (tmp_path / "videos").exists()
 
 
-def test_tanh_normal_policy_trains_on_box_actions_and_bad_names_are_refused():
+def test_brax_style_policy_trains_on_box_actions_and_bad_names_are_refused():
+    """Brax's PPO network choices: tanh-squashed Gaussian with state-dependent std, swish layers."""
     arena = jarena.build_arena("classic|domain:pendulum,task:swingup")
     agent = jarena_agents.build_agent("ppo", {"num_arenas": 4, "rollout_length": 16, "minibatches": 2,
-                                              "total_steps": 128, "box_policy": "tanh_normal"})
+                                              "total_steps": 128, "box_policy": "tanh_normal",
+                                              "activation": "swish"})
     state = agent.init_training(jax.random.key(0), arena)
     state, metrics = jax.jit(agent.train, static_argnums=(1, 2))(state, arena, 2)
     assert all(bool(jnp.all(jnp.isfinite(v))) for v in jax.tree_util.tree_leaves(metrics))
@@ -123,3 +125,5 @@ def test_tanh_normal_policy_trains_on_box_actions_and_bad_names_are_refused():
     assert "Dense_1" in policy.params["params"]["actor"] and "log_std" not in policy.params["params"]
     with pytest.raises(ValueError, match="unknown box_policy 'beta'; choose from gaussian, tanh_normal"):
         jarena_agents.build_agent("ppo", {"box_policy": "beta"})
+    with pytest.raises(ValueError, match="unknown activation 'gelu'"):
+        jarena_agents.build_agent("ppo", {"activation": "gelu"})
