@@ -83,3 +83,37 @@ def test_lazy_reset_gives_the_same_batch_as_select_reset():
     assert eager_out[1].any() and not eager_out[1].all()  # some steps restart episodes, some do not
     for e, z in zip(eager_out, lazy_out, strict=True):
         np.testing.assert_array_equal(e, z)
+
+
+def test_lazy_reset_computes_resets_only_in_steps_where_an_arena_finished():
+    """The lazy path must skip the reset computation, not merely give the same batch: a task whose reset
+    reports each (batched) execution runs 1 + 60 times eagerly, and 1 + (steps with a finished arena) lazily."""
+    import dataclasses
+
+    from jarena.core.task import Task
+
+    executions = []
+
+    def reset(key, physics, outcome, params):
+        jax.debug.callback(lambda: executions.append(1))
+        return outcome, ()
+
+    counter = Task(update=lambda state, outcome, transition, params: (outcome, state), reset=reset,
+                   name="count_resets")
+    base = jarena.build_arena("classic|domain:cartpole,time_limit:20")
+    counts = {}
+    for lazy in (False, True):
+        arena = dataclasses.replace(base, task=Task.chain(base.task, counter), lazy_reset=lazy)
+
+        def rollout(arena=arena):
+            def body(states, key):
+                states, info = jarena.batch_step(arena, states, jax.random.randint(key, (6,), 0, 2))
+                return states, info.done.any()
+            states, _ = jarena.batch_reset(arena, jax.random.key(0), 6)
+            return jax.lax.scan(body, states, jax.random.split(jax.random.key(1), 60))[1]
+
+        executions.clear()
+        any_done = jax.block_until_ready(jax.jit(rollout)())
+        counts[lazy] = (len(executions), int(any_done.sum()))
+    assert counts[False][0] == 1 + 60
+    assert 0 < counts[True][1] < 60 and counts[True][0] == 1 + counts[True][1]
