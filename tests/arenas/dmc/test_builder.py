@@ -84,3 +84,20 @@ def test_resets_fit_the_arenas_model_under_contact_culling(domain):
     assert jax.tree.structure(state) == jax.tree.structure(stepped)
     for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(stepped), strict=True):
         assert (a.shape, a.dtype) == (b.shape, b.dtype)
+
+
+def test_simulation_options_apply_to_each_tasks_own_model():
+    """finger's tasks have their own models (spin lowers the hinge damping; turn tasks size the target):
+    options must change the chosen task's model, not replace it with another task's or the bare suite's."""
+    import numpy as np
+
+    for task, damping, target_size in (("spin", 0.03, 0.03), ("turn_hard", None, 0.03), ("turn_easy", None, 0.07)):
+        model = jarena.build_arena(f"dmc|domain:finger,task:{task},iterations:3").dynamics.render.model
+        plain = jarena.build_arena(f"dmc|domain:finger,task:{task}").dynamics.render.model
+        assert model.opt.iterations == 3 and plain.opt.iterations == 200  # finger.xml sets 200
+        hinge = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "hinge")
+        np.testing.assert_allclose(model.dof_damping, plain.dof_damping)
+        if damping is not None:
+            assert model.dof_damping[model.jnt_dofadr[hinge]] == pytest.approx(damping)
+        target = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "target")
+        assert model.site_size[target, 0] == pytest.approx(target_size)
