@@ -49,8 +49,9 @@ def _agent_config(args, arena) -> dict:
     """The agent's config for ``arena``: the tuned one (``--config``), or with ``--checkpoint`` the one the
     run trained with, then the ``--set`` overrides.
 
-    Planners plan with the arena they act in: their config's ``arena`` is the evaluated arena's string,
-    and on arenas without a tuned config they run on their built-in defaults.
+    On arenas without a tuned ``default`` config the agent runs on its built-in defaults (with a note on
+    stderr, except for planners). Planners plan with the arena they act in: their config's ``arena`` is
+    the evaluated arena's string.
     """
     import jarena
     import jarena_agents
@@ -58,9 +59,11 @@ def _agent_config(args, arena) -> dict:
     planner = args.agent in jarena_agents.list_agents("planner")
     try:
         config = jarena.retrieve_config(args.agent, arena, args.config)
-    except FileNotFoundError:
-        if not (planner and args.config == "default"):
+    except FileNotFoundError as e:
+        if args.config != "default":  # a named config that is missing is an error
             raise
+        if not planner:
+            print(f"note: {e}; using {args.agent}'s built-in defaults (and any --set)", file=sys.stderr)
         config = {}
     if planner:
         config["arena"] = args.arena

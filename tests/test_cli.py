@@ -132,3 +132,13 @@ def test_checkpoints_restore_on_the_arena_they_trained_on(tmp_path):
     (tmp_path / "config.json").write_text(json.dumps({"agent": "ppo", "arena": "classic|domain:pendulum"}))
     with pytest.raises(ValueError, match="observation and action specs differ"):
         _trained_arena(tmp_path, evaluated)
+
+
+def test_train_without_a_tuned_config_uses_the_agents_defaults(capsys, tmp_path):
+    arena = "classic|domain:pendulum,task:swingup"  # no configs/ppo/classic-pendulum-swingup
+    assert main(["train", "ppo", arena, "--steps", "512", "--no-progress", "--set", "rollout_length=64"]) == 0
+    captured = capsys.readouterr()
+    assert "no config 'default' for agent 'ppo'" in captured.err and "built-in defaults" in captured.err
+    assert "trained 512 steps" in captured.out
+    assert main(["train", "ppo", arena, "--config", "tuned", "--steps", "512"]) == 2  # a named config must exist
+    assert "no config 'tuned'" in capsys.readouterr().err
