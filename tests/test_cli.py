@@ -135,7 +135,7 @@ def test_checkpoints_restore_on_the_arena_they_trained_on(tmp_path):
 
 
 def test_train_without_a_tuned_config_uses_the_agents_defaults(capsys, tmp_path):
-    arena = "classic|domain:pendulum,task:swingup"  # no configs/ppo/classic-pendulum-swingup
+    arena = "classic|domain:point_mass"  # no configs/ppo/ for it
     assert main(["train", "ppo", arena, "--steps", "512", "--no-progress", "--set", "rollout_length=64"]) == 0
     captured = capsys.readouterr()
     assert "no config 'default' for agent 'ppo'" in captured.err and "built-in defaults" in captured.err
