@@ -34,7 +34,6 @@ import argparse
 import dataclasses
 import datetime
 import importlib.metadata
-import json
 import os
 import platform
 import statistics
@@ -52,7 +51,7 @@ except ImportError:  # run from a checkout without installing: put the repositor
     import jarena
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from cartpole_throughput import cpu_model, fmt, parse_batches  # noqa: E402
+from cartpole_throughput import cpu_model, fmt, parse_batches, write_report  # noqa: E402
 
 OURS = ("auto", "auto-lazy", "step")
 PEERS = ("brax", "brax-step")
@@ -306,15 +305,8 @@ def main(argv=None) -> int:
     print()
     print(table)
     if args.out:
-        stem, ext = os.path.splitext(args.out)
-        md, js = (stem + ".md", args.out) if ext == ".json" else (args.out, stem + ".json")
-        os.makedirs(os.path.dirname(os.path.abspath(md)), exist_ok=True)
-        with open(md, "w") as f:
-            f.write(table)
-        with open(js, "w") as f:
-            json.dump({"environment": env, "args": {k: v for k, v in vars(args).items()},
-                       "episode_length": lengths, "results": rows}, f, indent=1)
-        print(f"wrote {md} and {js}")
+        write_report(args.out, table, {"environment": env, "args": dict(vars(args)), "episode_length": lengths,
+                                       "results": rows})
     return 0
 
 

@@ -282,6 +282,19 @@ def markdown(env: dict, rows: list[dict], variants: list[str], lengths: dict, ar
 # ---------------------------------------------------------------------------------------------- CLI
 
 
+def write_report(out: str, table: str, payload: dict) -> None:
+    """Writes the markdown ``table`` and the JSON ``payload`` next to each other: ``out`` names one of them
+    (``.json`` or anything else for the markdown), the other takes the same stem."""
+    stem, ext = os.path.splitext(out)
+    md, js = (stem + ".md", out) if ext == ".json" else (out, stem + ".json")
+    os.makedirs(os.path.dirname(os.path.abspath(md)), exist_ok=True)
+    with open(md, "w") as f:
+        f.write(table)
+    with open(js, "w") as f:
+        json.dump(payload, f, indent=1)
+    print(f"wrote {md} and {js}")
+
+
 def parse_batches(text: str) -> list[int]:
     """``1,4,16`` or ``4^0..4^8`` or ``2^0..2^20`` (every power in between), or a mix, comma-separated."""
     out = []
@@ -370,15 +383,8 @@ def main(argv=None) -> int:
     print()
     print(table)
     if args.out:
-        stem, ext = os.path.splitext(args.out)
-        md, js = (stem + ".md", args.out) if ext == ".json" else (args.out, stem + ".json")
-        os.makedirs(os.path.dirname(os.path.abspath(md)), exist_ok=True)
-        with open(md, "w") as f:
-            f.write(table)
-        with open(js, "w") as f:
-            json.dump({"environment": env, "args": {k: v for k, v in vars(args).items()},
-                       "episode_length": lengths, "results": rows}, f, indent=1)
-        print(f"wrote {md} and {js}")
+        write_report(args.out, table, {"environment": env, "args": dict(vars(args)), "episode_length": lengths,
+                                       "results": rows})
     return 0
 
 

@@ -23,6 +23,7 @@ import numpy as np
 
 from jarena.checkpoint import Checkpointer
 from jarena.core.arena import Arena
+from jarena.render.frames import RenderError
 from jarena.runners.evaluate import evaluate, validate
 from jarena.runners.results import EvalResult
 
@@ -146,16 +147,13 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
         from jarena.render.frames import can_render
 
         videos = min(int(eval_videos), arena.num_eval_episodes) if can_render(arena) else 0
-        if videos:
-            from jarena.render.frames import RenderError
-            from jarena.render.record import check_video
-            try:
-                check_video(arena)
-            except RenderError as e:  # the trained agent's evaluation matters more than its videos
-                warnings.warn(f"evaluating without videos: {e}", stacklevel=2)
-                videos = 0
-    evaluation = evaluate(agent, arena, jax.random.key(0), agent_state=agent.policy(train_state, arena.spec, True),
-                          videos=videos, video_dir=run_path / "videos" if videos else None)
+    policy = agent.policy(train_state, arena.spec, True)
+    try:
+        evaluation = evaluate(agent, arena, jax.random.key(0), agent_state=policy, videos=videos,
+                              video_dir=run_path / "videos" if videos else None)
+    except RenderError as e:  # raised before the rollout compiles; the evaluation matters more than videos
+        warnings.warn(f"evaluating without videos: {e}", stacklevel=2)
+        evaluation = evaluate(agent, arena, jax.random.key(0), agent_state=policy)
     if run_path is not None:
         _write_csv(run_path / "train.csv", history)
         _write_csv(run_path / "validation.csv", validations)

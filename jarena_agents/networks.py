@@ -92,14 +92,14 @@ class TanhNormal:
     def mode(self):
         return self.mean
 
+    def _base(self) -> Gaussian:
+        return Gaussian(self.mean, jnp.log(self.std))
+
     def log_prob(self, raw):
-        z = (raw - self.mean) / self.std
-        gaussian = jnp.sum(-0.5 * z**2 - jnp.log(self.std) - 0.5 * jnp.log(2 * jnp.pi), -1)
-        return gaussian - jnp.sum(_log_tanh_derivative(raw), -1)
+        return self._base().log_prob(raw) - jnp.sum(_log_tanh_derivative(raw), -1)
 
     def entropy(self):
-        gaussian = jnp.sum(jnp.log(self.std) + 0.5 * jnp.log(2 * jnp.pi * jnp.e), -1)
-        return gaussian + jnp.sum(_log_tanh_derivative(self.mean), -1)
+        return self._base().entropy() + jnp.sum(_log_tanh_derivative(self.mean), -1)
 
     def unit(self, raw):
         return jnp.tanh(raw)

@@ -89,6 +89,34 @@ def _with_contact_limits(xml: str) -> str:
     return f"{head}<custom>{numerics}</custom>{sep}{tail}"
 
 
+def without_collisions_target_as_mocap(xml: str, carried: tuple[str, ...] = ()) -> str:
+    """``xml`` with no geom in the collision table and its world geom ``target`` moved into a mocap body
+    of the same name at the geom's position (per-episode targets then live in ``data.mocap_pos``).
+
+    ``carried``: ElementTree paths under ``worldbody`` of elements that move with the target (e.g. its
+    light), re-expressed relative to it so they stay where they were.
+    """
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(xml)
+    for geom in root.iter("geom"):
+        geom.set("contype", "0")
+        geom.set("conaffinity", "0")
+    world = root.find("worldbody")
+    target = world.find("geom[@name='target']")
+    world.remove(target)
+    pos = target.attrib.pop("pos")
+    body = ET.SubElement(world, "body", name="target", mocap="true", pos=pos)
+    body.append(target)
+    for path in carried:
+        element = world.find(path)
+        world.remove(element)
+        relative = [float(a) - float(b) for a, b in zip(element.get("pos").split(), pos.split(), strict=True)]
+        element.set("pos", " ".join(str(v) for v in relative))
+        body.append(element)
+    return ET.tostring(root, encoding="unicode")
+
+
 def replace_once(xml: str, old: str, new: str) -> str:
     """``xml`` with its single occurrence of ``old`` replaced by ``new`` (for ``edit`` functions); a
     ``ValueError`` if ``old`` does not occur exactly once (the suite's model changed)."""

@@ -23,8 +23,6 @@
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -42,16 +40,7 @@ _JOINTS = ("tail1", "tail_twist", "tail2", "finright_roll", "finright_pitch", "f
 
 def mjx_xml(xml: str) -> str:
     """The suite's fish XML made MJX-ready: no geom in the collision table, the target a mocap body."""
-    root = ET.fromstring(xml)
-    for geom in root.iter("geom"):
-        geom.set("contype", "0")
-        geom.set("conaffinity", "0")
-    world = root.find("worldbody")
-    target = world.find("geom[@name='target']")
-    world.remove(target)
-    body = ET.SubElement(world, "body", name="target", mocap="true", pos=target.attrib.pop("pos"))
-    body.append(target)
-    return ET.tostring(root, encoding="unicode")
+    return common.without_collisions_target_as_mocap(xml)
 
 
 def model():

@@ -20,8 +20,6 @@
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
-
 import jax
 import jax.numpy as jnp
 
@@ -38,22 +36,9 @@ _CLOSE_TARGET_PROBABILITY = 0.2
 
 
 def mjx_xml(xml: str) -> str:
-    """The suite's swimmer XML made MJX-ready: no geom in the collision table, the target a mocap body."""
-    root = ET.fromstring(xml)
-    for geom in root.iter("geom"):
-        geom.set("contype", "0")
-        geom.set("conaffinity", "0")
-    world = root.find("worldbody")
-    target, light = world.find("geom[@name='target']"), world.find("light[@name='target_light']")
-    world.remove(target)
-    world.remove(light)
-    pos = target.attrib.pop("pos")
-    body = ET.SubElement(world, "body", name="target", mocap="true", pos=pos)
-    body.append(target)
-    light_pos = [float(a) - float(b) for a, b in zip(light.get("pos").split(), pos.split(), strict=True)]
-    light.set("pos", " ".join(str(v) for v in light_pos))  # same place, now relative to the target
-    body.append(light)
-    return ET.tostring(root, encoding="unicode")
+    """The suite's swimmer XML made MJX-ready: no geom in the collision table, the target (and its light)
+    a mocap body."""
+    return common.without_collisions_target_as_mocap(xml, carried=("light[@name='target_light']",))
 
 
 def model():
