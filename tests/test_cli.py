@@ -9,6 +9,8 @@ def test_list(capsys):
     assert main(["list"]) == 0
     out = capsys.readouterr().out
     assert "classic|domain:cartpole,task:balance" in out and "oracle_cartpole" in out
+    agents = out[out.index("Agents"):].splitlines()[1:]
+    assert len({line.index("[") for line in agents if line.strip()}) == 1  # one tag column, longest names too
 
 
 def test_evaluate_prints_table_and_writes_json(capsys, tmp_path):
