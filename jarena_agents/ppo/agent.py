@@ -47,13 +47,17 @@ class PPOConfig:
     clip_epsilon: float = 0.2
     entropy_coef: float = 0.01
     value_coef: float = 0.5
-    max_grad_norm: float = 0.5
+    max_grad_norm: float | None = 0.5  # None: no clipping (Brax's default)
     hidden: tuple = (64, 64)
     value_hidden: tuple | None = None  # the value MLP's layers (default: ``hidden``)
     box_policy: str = "gaussian"  # or "tanh_normal" (Brax's): see networks.ActorCritic
     activation: str = "tanh"  # hidden layers: tanh, relu or swish (Brax's)
     normalize_observations: bool = False
     reward_scale: float = 1.0
+    # None: GAE over the whole rollout with the acting parameters, then transitions are shuffled
+    # (PureJaxRL). An int U: the rollout is cut into U-step segments, segments are shuffled, and each
+    # minibatch recomputes GAE over its segments with the current value network (Brax's PPO).
+    unroll_length: int | None = None
 
     @property
     def steps_per_update(self) -> int:
@@ -98,6 +102,14 @@ def make_ppo(config=None) -> Agent:
     if cfg.steps_per_update % cfg.minibatches:
         raise ValueError(f"ppo: num_arenas * rollout_length = {cfg.steps_per_update} must be divisible by "
                          f"minibatches = {cfg.minibatches}")
+    unroll = cfg.unroll_length
+    if unroll is not None:
+        if unroll < 1 or cfg.rollout_length % unroll:
+            raise ValueError(f"ppo: unroll_length = {unroll} must be a positive divisor of rollout_length = "
+                             f"{cfg.rollout_length}")
+        if (cfg.steps_per_update // unroll) % cfg.minibatches:
+            raise ValueError(f"ppo: the {cfg.steps_per_update // unroll} segments of unroll_length = {unroll} "
+                             f"must be divisible by minibatches = {cfg.minibatches}")
 
     def network(spec: ArenaSpec):
         networks.check_supported(spec.action, "ppo")
@@ -109,7 +121,8 @@ def make_ppo(config=None) -> Agent:
         lr = cfg.learning_rate
         if cfg.anneal_lr:
             lr = optax.linear_schedule(cfg.learning_rate, 0.0, cfg.num_updates * cfg.epochs * cfg.minibatches)
-        return optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm), optax.adam(lr, eps=1e-5))
+        adam = optax.adam(lr, eps=1e-5)
+        return adam if cfg.max_grad_norm is None else optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm), adam)
 
     def forward(spec, params, stats, observation):
         if cfg.normalize_observations:
@@ -166,21 +179,39 @@ def make_ppo(config=None) -> Agent:
         (arena_state, info, episode_return), batch = jax.lax.scan(
             rollout_step, (ts.arena_state, ts.info, ts.episode_return),
             jax.random.split(rollout_key, cfg.rollout_length))
-        _, next_values = forward(spec, ts.params, ts.observation_stats, batch["final_observation"])
-        advantages, returns = compute_gae(batch["reward"], batch["value"], next_values, batch["terminated"],
-                                          batch["done"], cfg.discount, cfg.gae_lambda)
         stats = ts.observation_stats
         if cfg.normalize_observations:
             stats = normalizer.update(stats, batch["observation"])
 
-        samples = dict(observation=batch["observation"], raw_action=batch["raw_action"],
-                       log_prob=batch["log_prob"], value=batch["value"], advantages=advantages, returns=returns)
-        samples = jax.tree_util.tree_map(lambda x: x.reshape((cfg.steps_per_update,) + x.shape[2:]), samples)
+        def advantages_of(params, stats, segment):
+            """GAE over a (T, ...) time-major segment with the given value network."""
+            _, next_values = forward(spec, params, stats, segment["final_observation"])
+            return compute_gae(segment["reward"], segment["value"], next_values, segment["terminated"],
+                               segment["done"], cfg.discount, cfg.gae_lambda)
+
+        keys = ("observation", "raw_action", "log_prob", "value")
+        if unroll is None:
+            # GAE once with the acting network; minibatches of single transitions.
+            advantages, returns = advantages_of(ts.params, ts.observation_stats, batch)
+            samples = dict({k: batch[k] for k in keys}, advantages=advantages, returns=returns)
+            samples = jax.tree_util.tree_map(lambda x: x.reshape((cfg.steps_per_update,) + x.shape[2:]), samples)
+            sample_axis = 0
+        else:
+            # (T, B, ...) -> (U, T / U * B, ...): U-step segments, GAE per minibatch with current params.
+            samples = {k: batch[k] for k in keys + ("reward", "terminated", "done", "final_observation")}
+            samples = jax.tree_util.tree_map(
+                lambda x: x.reshape((cfg.rollout_length // unroll, unroll) + x.shape[1:]).swapaxes(0, 1)
+                .reshape((unroll, -1) + x.shape[2:]), samples)
+            sample_axis = 1
 
         def loss_fn(params, mb):
             policy_out, values = forward(spec, params, stats, mb["observation"])
+            if unroll is None:
+                advantages, returns = mb["advantages"], mb["returns"]
+            else:
+                advantages, returns = advantages_of(params, stats, dict(mb, value=values))
             logp = networks.log_prob(spec.action, policy_out, mb["raw_action"])
-            terms = ppo_loss(logp, mb["log_prob"], mb["advantages"], values, mb["value"], mb["returns"],
+            terms = ppo_loss(logp, mb["log_prob"], advantages, values, mb["value"], returns,
                              networks.entropy(spec.action, policy_out), clip_epsilon=cfg.clip_epsilon,
                              value_coef=cfg.value_coef, entropy_coef=cfg.entropy_coef)
             return terms.total, terms
@@ -192,10 +223,15 @@ def make_ppo(config=None) -> Agent:
             return (optax.apply_updates(params, updates), opt_state), terms
 
         def epoch(carry, key):
-            order = jax.random.permutation(key, cfg.steps_per_update)
-            minibatches = jax.tree_util.tree_map(
-                lambda x: x[order].reshape((cfg.minibatches, -1) + x.shape[1:]), samples)
-            return jax.lax.scan(sgd_step, carry, minibatches)
+            count = jax.tree_util.tree_leaves(samples)[0].shape[sample_axis]
+            order = jax.random.permutation(key, count)
+
+            def split(x):
+                x = jnp.moveaxis(jnp.take(x, order, axis=sample_axis), sample_axis, 0)
+                x = x.reshape((cfg.minibatches, count // cfg.minibatches) + x.shape[1:])
+                return jnp.moveaxis(x, 1, sample_axis + 1)
+
+            return jax.lax.scan(sgd_step, carry, jax.tree_util.tree_map(split, samples))
 
         (params, opt_state), terms = jax.lax.scan(epoch, (ts.params, ts.opt_state),
                                                   jax.random.split(shuffle_key, cfg.epochs))

@@ -127,3 +127,28 @@ def test_brax_style_policy_trains_on_box_actions_and_bad_names_are_refused():
         jarena_agents.build_agent("ppo", {"box_policy": "beta"})
     with pytest.raises(ValueError, match="unknown activation 'gelu'"):
         jarena_agents.build_agent("ppo", {"activation": "gelu"})
+
+
+def test_segment_gae_equals_whole_rollout_gae_when_one_segment_and_one_step():
+    """Brax's scheme (``unroll_length``: GAE per minibatch of segments with the current value network)
+    reduces to the PureJaxRL scheme when the segment is the whole rollout and there is one gradient step:
+    the current network is then the acting one, and the loss is a mean over the same transitions."""
+    arena = jarena.build_arena("classic|domain:pendulum,task:swingup")
+    base = {"num_arenas": 4, "rollout_length": 16, "minibatches": 1, "epochs": 1}
+    whole = jarena_agents.build_agent("ppo", base)
+    segmented = jarena_agents.build_agent("ppo", dict(base, unroll_length=16))
+    short = jarena_agents.build_agent("ppo", dict(base, unroll_length=4, minibatches=2, epochs=2))
+    results = [jax.jit(lambda k, a=a: a.train(a.init_training(k, arena), arena, 1))(jax.random.key(0))
+               for a in (whole, segmented, short)]
+    (a, ma), (b, mb), (c, mc) = results
+    for x, y in zip(jax.tree_util.tree_leaves(a.params), jax.tree_util.tree_leaves(b.params), strict=True):
+        np.testing.assert_allclose(x, y, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(ma["total"], mb["total"], rtol=1e-5)
+    assert all(bool(jnp.all(jnp.isfinite(v))) for v in jax.tree_util.tree_leaves(mc))
+    diff = [float(jnp.max(jnp.abs(x - y))) for x, y in zip(jax.tree_util.tree_leaves(a.params),
+                                                           jax.tree_util.tree_leaves(c.params), strict=True)]
+    assert max(diff) > 1e-4  # four segments, two epochs: a different update
+    with pytest.raises(ValueError, match="unroll_length = 5 must be a positive divisor of rollout_length = 16"):
+        jarena_agents.build_agent("ppo", dict(base, unroll_length=5))
+    with pytest.raises(ValueError, match="the 4 segments of unroll_length = 8 must be divisible by minibatches = 8"):
+        jarena_agents.build_agent("ppo", dict(base, unroll_length=8, minibatches=8, num_arenas=2))
