@@ -9,8 +9,10 @@ whole batch, in every variant. Variants:
 
 - ``auto``: ours, ``jarena.batch_step`` (step, then a fresh ``env.reset`` selected in where an episode
   ended: Brax's termination or the 1000-step time limit).
-- ``auto-lazy`` (not run by default): ``auto`` with ``Arena.lazy_reset`` (resets computed only in steps
+- ``auto-lazy`` (not run by default): ``auto`` with ``auto_reset:lazy`` (resets computed only in steps
   where some episode ended).
+- ``auto-repeat``: ``auto`` with ``auto_reset:repeat``: each env restarts from its first initial state,
+  Brax's own auto-reset semantics (the like-for-like comparison with ``brax``).
 - ``step``: ours, ``jax.vmap(arena.step)``, no reset.
 - ``brax``: Brax's training loop, ``brax.envs.training.wrap(env, episode_length=1000)`` (``VmapWrapper``,
   ``EpisodeWrapper``, ``AutoResetWrapper``), as Brax's PPO and SAC step it. Its auto-reset restores each
@@ -53,10 +55,12 @@ except ImportError:  # run from a checkout without installing: put the repositor
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from cartpole_throughput import cpu_model, fmt, parse_batches, write_report  # noqa: E402
 
-OURS = ("auto", "auto-lazy", "step")
+#: Our auto-resetting variants and the ``auto_reset`` strategy each imposes (None: the arena's default).
+AUTO_RESETS = {"auto": None, "auto-lazy": "lazy", "auto-repeat": "repeat"}
+OURS = (*AUTO_RESETS, "step")
 PEERS = ("brax", "brax-step")
 ALL_VARIANTS = OURS + PEERS
-DEFAULT_VARIANTS = ("auto", "step", "brax", "brax-step")
+DEFAULT_VARIANTS = ("auto", "auto-repeat", "step", "brax", "brax-step")
 EPISODE_LENGTH = 1000  # Brax's default episode_length; jarena's brax arenas default to the same time limit
 
 
@@ -71,8 +75,8 @@ def _actions(key: jax.Array, t: jax.Array, batch: int, size: int) -> jax.Array:
 
 def ours(variant: str, batch: int, env_name: str, backend: str) -> tuple[Callable, Callable]:
     arena = jarena.build_arena(f"brax|env:{env_name},backend:{backend},time_limit:{EPISODE_LENGTH}")
-    if variant == "auto-lazy":
-        arena = dataclasses.replace(arena, lazy_reset=True)
+    if AUTO_RESETS.get(variant) is not None:
+        arena = dataclasses.replace(arena, auto_reset=AUTO_RESETS[variant])
     params = arena.default_params()
     size = arena.action_spec.shape[0]
     step = jax.vmap(arena.step, in_axes=(0, 0, None))
@@ -82,7 +86,7 @@ def ours(variant: str, batch: int, env_name: str, backend: str) -> tuple[Callabl
         states, _ = jarena.batch_reset(arena, key_reset, batch, params)
         return states, key_loop
 
-    if variant in ("auto", "auto-lazy"):
+    if variant in AUTO_RESETS:
         def body(carry, t):
             states, key = carry
             states, info = jarena.batch_step(arena, states, _actions(key, t, batch, size), params)
@@ -218,7 +222,8 @@ def markdown(env: dict, rows: list[dict], variants: list[str], lengths: dict, ar
         ra, rb = by.get((a, batch)), by.get((b, batch))
         return None if ra is None or rb is None else ra["steps_per_s"] / rb["steps_per_s"]
 
-    pairs = [(a, b) for a, b in (("auto", "brax"), ("auto-lazy", "brax"), ("step", "brax-step"))
+    pairs = [(a, b) for a, b in (("auto", "brax"), ("auto-lazy", "brax"), ("auto-repeat", "brax"),
+                                              ("step", "brax-step"))
              if a in variants and b in variants]
     lines = [f"- env: brax `{args.env}` on backend `{args.backend}`, episode length {EPISODE_LENGTH}",
              f"- date: {env['date']}", f"- device: {env['device']} (backend {env['backend']}, "
@@ -290,7 +295,7 @@ def main(argv=None) -> int:
     lengths = {}
     if not args.no_check:
         for v in args.variant_list:
-            if v in ("auto", "auto-lazy", "brax"):
+            if v in (*AUTO_RESETS, "brax"):
                 lengths[v] = mean_episode_length(v, args)
         if lengths:
             print("mean episode length: " + ", ".join(f"{v} {_length(x)}" for v, x in lengths.items()), flush=True)

@@ -7,12 +7,18 @@ variants so that load changes weigh on all alike. Variants:
 
 - ``raw``: ``jax.vmap`` of ``n_sub_steps`` ``mjx.step`` calls on the same MuJoCo model as ours, with the
   action written to ``ctrl``: physics only (no observation, reward, termination or reset).
-- ``ours``: ``jarena.batch_step``: the full arena step (observation, reward, time limit, auto-reset).
+- ``ours``: ``jarena.batch_step``: the full arena step (observation, reward, time limit, auto-reset) with
+  the arena's default auto-reset (dmc: ``lazy``, fresh initial states computed in steps where an arena
+  finished; brax: ``select``).
+- ``ours-repeat``: ours with ``auto_reset:repeat``: each arena restarts from its first initial state, the
+  auto-reset of Brax's and Playground's training wrappers (the like-for-like comparison with them).
 - ``ours-pg-options`` (dmc only): ours built with the simulation options of Playground's version of the
   model (build options ``iterations``, ``ls_iterations``, ``integrator``, ``eulerdamp``, ``timestep``,
   ``max_contact_points``, ``max_geom_pairs``): Playground trades the suite's accuracy for speed (1-4
   solver iterations, Euler instead of RK4, no implicit damping, a longer timestep for humanoid, MJX
   contact culling); this variant does the same physics work as the ``playground`` variant.
+- ``ours-pg-repeat`` (dmc only): ``ours-pg-options`` with ``auto_reset:repeat``: the same physics and the
+  same reset semantics as ``playground``.
 - ``playground``: mujoco_playground's equivalent environment on MJX (``impl="jax"``, not Warp), with
   its Brax-training wrapper (episode length 1000, auto-reset), as Playground's trainers step it.
 - ``ours-noreset`` and ``ours-select`` (diagnostics): the arena step without auto-reset, and with the
@@ -59,7 +65,11 @@ ENVS = {
     "humanoid-walk": {"ours": "dmc|domain:humanoid,task:walk", "playground": "HumanoidWalk"},
     "ant": {"ours": "brax|env:ant,backend:mjx", "brax": "ant"},
 }
-VARIANTS = ("raw", "ours", "ours-pg-options", "playground", "brax", "ours-noreset", "ours-select")
+VARIANTS = ("raw", "ours", "ours-repeat", "ours-pg-options", "ours-pg-repeat", "playground", "brax", "ours-noreset",
+            "ours-select")
+#: (ours, peer) pairs compared in the summary: like for like where the names say so.
+COMPARISONS = (("ours", "raw"), ("ours-repeat", "raw"), ("ours-repeat", "brax"), ("ours", "brax"),
+               ("ours-pg-repeat", "playground"), ("ours-pg-options", "playground"))
 
 
 def _random_actions(key, t, batch, dim):
@@ -80,9 +90,11 @@ def _brax_env(name: str):
     return brax.envs.get_environment(name, backend="mjx")
 
 
-def ours_loop(arena_string: str, batch: int, reset: str = "lazy"):
+def ours_loop(arena_string: str, batch: int, reset: str | None = None):
+    """``reset``: an ``auto_reset`` strategy to impose, ``"none"`` for no auto-reset, None for the arena's."""
     arena = jarena.build_arena(arena_string)
-    arena = dataclasses.replace(arena, lazy_reset=(reset == "lazy"))
+    if reset not in (None, "none"):
+        arena = dataclasses.replace(arena, auto_reset=reset)
     params = arena.default_params()
     dim = arena.action_spec.shape[0]
 
@@ -167,21 +179,26 @@ def playground_options(env: str) -> str:
     return options
 
 
-def fewer_iters_loop(env: str, batch: int):
-    return ours_loop(f"{ENVS[env]['ours']},{playground_options(env)}", batch)
+#: Our variants: (build-string suffix maker, auto-reset imposed).
+OURS = {
+    "ours": (lambda env: "", None),
+    "ours-repeat": (lambda env: ",auto_reset:repeat", None),
+    "ours-pg-options": (lambda env: "," + playground_options(env), None),
+    "ours-pg-repeat": (lambda env: "," + playground_options(env) + ",auto_reset:repeat", None),
+    "ours-noreset": (lambda env: "", "none"),
+    "ours-select": (lambda env: "", "select"),
+}
 
 
 def make_loop(variant: str, env: str, batch: int) -> tuple[Callable, Callable]:
-    if variant == "ours":
-        return ours_loop(ENVS[env]["ours"], batch)
-    if variant in ("ours-noreset", "ours-select"):
-        return ours_loop(ENVS[env]["ours"], batch, reset=variant[5:].replace("noreset", "none"))
-    return {"raw": raw_loop, "playground": playground_loop, "brax": brax_loop,
-            "ours-pg-options": fewer_iters_loop}[variant](env, batch)
+    if variant in OURS:
+        suffix, reset = OURS[variant]
+        return ours_loop(ENVS[env]["ours"] + suffix(env), batch, reset)
+    return {"raw": raw_loop, "playground": playground_loop, "brax": brax_loop}[variant](env, batch)
 
 
 def applicable(variant: str, env: str) -> bool:
-    if variant in ("playground", "ours-pg-options"):
+    if variant in ("playground", "ours-pg-options", "ours-pg-repeat"):
         return "playground" in ENVS[env]
     if variant == "brax":
         return "brax" in ENVS[env]
@@ -241,6 +258,12 @@ def table(rows: list[dict]) -> str:
     for r in rows:
         if "error" in r:
             out.append(f"| {r['env']} | {r['batch']} | {r['variant']} | error: {r['error'][:80]} | | |")
+    rate = {(r["env"], r["batch"], r["variant"]): r["steps_per_s"] for r in ok}
+    pairs = [(e, b, a, p) for (e, b) in dict.fromkeys((r["env"], r["batch"]) for r in ok) for a, p in COMPARISONS
+             if (e, b, a) in rate and (e, b, p) in rate]
+    if pairs:
+        out += ["", "| env | B | ratio | value |", "|---|---:|---|---:|"]
+        out += [f"| {e} | {b} | {a} / {p} | {rate[e, b, a] / rate[e, b, p]:.2f} |" for e, b, a, p in pairs]
     return "\n".join(out)
 
 

@@ -15,16 +15,18 @@ from jarena.building.grammar import ArenaStringError, Call
 from jarena.building.registry import unknown_choice
 from jarena.core.arena import Arena
 from jarena.core.chain import chain
+from jarena.core.resets import RESET_STRATEGIES
 from jarena.tasks.time_limit import time_limit as time_limit_task
 
 
 def assemble(builder: str, domains: Mapping[str, Domain], domain: str, task: Any = None, action: Any = None,
              time_limit: int | None = None, wrap: Any = None, eval_episodes: int | None = None,
-             val_episodes: int | None = None) -> Arena:
+             val_episodes: int | None = None, auto_reset: str | None = None) -> Arena:
     """Builds ``domain``'s arena for ``task`` (a name or a call with keyword arguments).
 
     The task chain is ``chain(base task, time_limit, *wrap)``; the tool chain is the domain's default
-    tool, then ``action`` (a tool, call or list of them) in front of it.
+    tool, then ``action`` (a tool, call or list of them) in front of it. ``auto_reset`` overrides the
+    domain's reset strategy (one of ``jarena.core.resets.RESET_STRATEGIES``).
     """
     if domain not in domains:
         raise ArenaStringError(unknown_choice(f"{builder} domain", domain, sorted(domains)))
@@ -43,6 +45,9 @@ def assemble(builder: str, domains: Mapping[str, Domain], domain: str, task: Any
     except TypeError as e:
         raise ArenaStringError(f"bad arguments in task {task_call}: {e}; signature: "
                                f"{task_call.name}{inspect.signature(factory)}") from None
+
+    if auto_reset is not None and auto_reset not in RESET_STRATEGIES:
+        raise ArenaStringError(unknown_choice("auto_reset", auto_reset, list(RESET_STRATEGIES)))
 
     tasks = [base]
     limit = dom.time_limit if time_limit is None else time_limit
@@ -65,7 +70,7 @@ def assemble(builder: str, domains: Mapping[str, Domain], domain: str, task: Any
         extra["num_val_episodes"] = int(val_episodes)
     arena = Arena(dynamics=dynamics, sensor=dom.sensor_for(task_call.name), task=chain(*tasks),
                   tool=chain(*tools) if tools else Arena.tool, name=f"{builder}-{domain}-{task_call.name}",
-                  lazy_reset=dom.lazy_reset, **extra)
+                  auto_reset=dom.auto_reset if auto_reset is None else auto_reset, **extra)
     try:
         _ = arena.action_spec  # tools check the spec they drive here, at build time
     except (TypeError, ValueError) as e:

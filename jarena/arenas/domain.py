@@ -24,7 +24,8 @@ class Domain:
       tags: task name -> tags (e.g. ``("benchmark",)``).
       sensors: task name -> ``() -> Sensor`` for tasks that observe more than the domain's sensor
         (dm_control's observations are defined per task, e.g. finger turn adds its target).
-      lazy_reset: build arenas with ``Arena.lazy_reset`` (expensive resets, episodes that end together).
+      auto_reset: the arenas' default ``Arena.auto_reset`` (``lazy`` for expensive resets and episodes that
+        end together).
       task_dynamics: task name -> ``() -> Dynamics`` for tasks whose physics differ from the domain's
         (dm_control's finger spin lowers the spinner's damping; reacher hard shrinks its target).
     """
@@ -37,7 +38,7 @@ class Domain:
     tool: Callable[[], ActionTool] | None = None
     tags: Mapping[str, tuple[str, ...]] = dataclasses.field(default_factory=dict)
     sensors: Mapping[str, Callable[[], Sensor]] = dataclasses.field(default_factory=dict)
-    lazy_reset: bool = False
+    auto_reset: str = "select"
     task_dynamics: Mapping[str, Callable[[], Dynamics]] = dataclasses.field(default_factory=dict)
 
     def sensor_for(self, task: str) -> Sensor:

@@ -12,6 +12,7 @@ import jax.numpy as jnp
 
 from jarena.core import episodes as episodes_lib
 from jarena.core.dynamics import Dynamics, Sensor
+from jarena.core.resets import reset_strategy
 from jarena.core.spec import Spec, spec_from_value
 from jarena.core.task import Task
 from jarena.core.tool import ActionTool
@@ -44,11 +45,10 @@ class Arena:
       name: a file-system friendly name (``classic-cartpole-balance``), used to find configs.
       build_string: the string that builds this arena, when it came from :func:`jarena.build_arena`.
       num_val_episodes, num_eval_episodes: sizes of the fixed validation and evaluation splits.
-      lazy_reset: tells :func:`jarena.batch_step` to compute auto-resets only in steps where an arena of
-        the batch finished (one ``lax.cond`` over the batch), not for every arena at every step. Pays off
-        where resets are expensive and episodes end together (fixed-length MuJoCo episodes, a reset that
-        settles the physics for hundreds of steps); the default select-based reset is faster for cheap
-        resets and staggered episodes.
+      auto_reset: how :func:`jarena.auto_reset` and :func:`jarena.batch_step` restart finished arenas:
+        ``select`` (a fresh episode computed every step), ``lazy`` (fresh episodes computed only in steps
+        where an arena finished) or ``repeat`` (each arena replays its first initial state, as Brax and
+        Playground do); see :mod:`jarena.core.resets`.
     """
 
     dynamics: Dynamics
@@ -59,7 +59,10 @@ class Arena:
     build_string: str | None = None
     num_val_episodes: int = 20
     num_eval_episodes: int = 100
-    lazy_reset: bool = False
+    auto_reset: str = "select"
+
+    def __post_init__(self):
+        reset_strategy(self.auto_reset)  # a clear error for an unknown name
 
     # ------------------------------------------------------------------ specs and params
     def default_params(self) -> ArenaParams:
@@ -148,7 +151,10 @@ class Arena:
         tool_state = self.tool.reset(key_tool, params.tool, self.dynamics.control_spec)
         state = ArenaState(physics=physics, task=task_state, tool=tool_state, step=jnp.zeros((), jnp.int32),
                            episode=episode, rng=KeyWords.pack(rng))
-        return state, self._info(state, outcome, params)
+        info = self._info(state, outcome, params)
+        if reset_strategy(self.auto_reset).keeps_start:
+            state = state.replace(start=(state, info))
+        return state, info
 
     def step(self, state: ArenaState, action: PyTree, params: ArenaParams | None = None
              ) -> tuple[ArenaState, Info]:

@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 
 from jarena.core.arena import Arena
+from jarena.core.resets import reset_strategy
 from jarena.core.tree import tree_where
 from jarena.core.types import ArenaParams, ArenaState, Info
 
@@ -44,7 +45,8 @@ def auto_reset(arena: Arena, state: ArenaState, action: PyTree, params: ArenaPar
     The returned info keeps the finished step's reward, terminated, truncated, success, reward terms
     and metrics (so the transition is not lost), while its observation, goal, step and episode are the
     new episode's; ``info.final`` holds the finished episode's terminal observation, goal, length and
-    id. The new episode is a fresh training episode drawn from ``state.rng``. vmap it for batches.
+    id. The new episode follows ``arena.auto_reset`` (by default a fresh training episode drawn from
+    ``state.rng``; see :mod:`jarena.core.resets`). vmap it for batches.
     """
     params = arena.default_params() if params is None else params
     next_state, info = arena.step(state, action, params)
@@ -53,8 +55,8 @@ def auto_reset(arena: Arena, state: ArenaState, action: PyTree, params: ArenaPar
 
 def _start_new_episodes(arena: Arena, next_state: ArenaState, info: Info, params: ArenaParams
                         ) -> tuple[ArenaState, Info]:
-    """Replaces finished episodes (``info.done``) of one arena by new ones drawn from ``next_state.rng``."""
-    new_state, new_info = arena.reset(next_state.rng.unpack(), params)
+    """Replaces finished episodes (``info.done``) of one arena by its strategy's new episode."""
+    new_state, new_info = reset_strategy(arena.auto_reset).new_episode(arena, next_state, params)
     done = info.done
     info = info.replace(observation=tree_where(done, new_info.observation, info.observation),
                         goal=jnp.where(done, new_info.goal, info.goal),
@@ -65,15 +67,13 @@ def _start_new_episodes(arena: Arena, next_state: ArenaState, info: Info, params
 
 def batch_step(arena: Arena, states: ArenaState, actions: PyTree, params: ArenaParams | None = None, *,
                params_axis: int | None = None, reset_done: bool = True) -> tuple[ArenaState, Info]:
-    """Steps a batch of arenas (leading axis B), auto-resetting finished episodes when ``reset_done``.
-
-    With ``arena.lazy_reset`` the resets are computed only in steps where some arena finished; the
-    result is the same.
-    """
+    """Steps a batch of arenas (leading axis B), auto-resetting finished episodes when ``reset_done``
+    (as ``arena.auto_reset`` says; a ``lazy`` arena computes resets only in steps where some arena
+    finished, with the same result as ``select``)."""
     params = arena.default_params() if params is None else params
     if not reset_done:
         return jax.vmap(arena.step, in_axes=(0, 0, params_axis))(states, actions, params)
-    if not arena.lazy_reset:
+    if not reset_strategy(arena.auto_reset).only_when_done:
         step_and_reset = jax.vmap(lambda s, a, p: auto_reset(arena, s, a, p), in_axes=(0, 0, params_axis))
         return step_and_reset(states, actions, params)
     stepped = jax.vmap(arena.step, in_axes=(0, 0, params_axis))(states, actions, params)

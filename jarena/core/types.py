@@ -160,6 +160,8 @@ class ArenaState:
       episode: int32 episode id.
       rng: :class:`KeyWords`, the PRNG key (``rng.unpack()``) that seeds the next episode when the arena
         auto-resets.
+      start: ``None``, or with ``Arena.auto_reset == "repeat"`` the ``(state, info)`` this arena's first
+        episode started from (its own ``start`` ``None``), restored when an episode ends.
     """
 
     physics: PyTree
@@ -168,6 +170,7 @@ class ArenaState:
     step: Array
     episode: Array
     rng: KeyWords
+    start: PyTree = None
 
 
 @struct.dataclass

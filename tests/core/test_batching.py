@@ -68,7 +68,7 @@ def test_lazy_reset_gives_the_same_batch_as_select_reset():
 
     import numpy as np
     arena = jarena.build_arena("classic|domain:cartpole,time_limit:20")
-    lazy = dataclasses.replace(arena, lazy_reset=True)
+    lazy = dataclasses.replace(arena, auto_reset="lazy")
 
     def rollout(a):
         def body(carry, key):
@@ -87,7 +87,8 @@ def test_lazy_reset_gives_the_same_batch_as_select_reset():
 
 def test_lazy_reset_computes_resets_only_in_steps_where_an_arena_finished():
     """The lazy path must skip the reset computation, not merely give the same batch: a task whose reset
-    reports each (batched) execution runs 1 + 60 times eagerly, and 1 + (steps with a finished arena) lazily."""
+    reports each (batched) execution runs 1 + 60 times eagerly, 1 + (steps with a finished arena) lazily,
+    and once (the first reset) when arenas repeat their first episode."""
     import dataclasses
 
     from jarena.core.task import Task
@@ -102,8 +103,8 @@ def test_lazy_reset_computes_resets_only_in_steps_where_an_arena_finished():
                    name="count_resets")
     base = jarena.build_arena("classic|domain:cartpole,time_limit:20")
     counts = {}
-    for lazy in (False, True):
-        arena = dataclasses.replace(base, task=Task.chain(base.task, counter), lazy_reset=lazy)
+    for strategy in ("select", "lazy", "repeat"):
+        arena = dataclasses.replace(base, task=Task.chain(base.task, counter), auto_reset=strategy)
 
         def rollout(arena=arena):
             def body(states, key):
@@ -114,6 +115,51 @@ def test_lazy_reset_computes_resets_only_in_steps_where_an_arena_finished():
 
         executions.clear()
         any_done = jax.block_until_ready(jax.jit(rollout)())
-        counts[lazy] = (len(executions), int(any_done.sum()))
-    assert counts[False][0] == 1 + 60
-    assert 0 < counts[True][1] < 60 and counts[True][0] == 1 + counts[True][1]
+        counts[strategy] = (len(executions), int(any_done.sum()))
+    assert counts["select"][0] == 1 + 60
+    assert 0 < counts["lazy"][1] < 60 and counts["lazy"][0] == 1 + counts["lazy"][1]
+    assert counts["repeat"][0] == 1 and counts["repeat"][1] > 0
+
+
+def test_repeat_reset_replays_each_arenas_first_episode():
+    """``auto_reset:repeat`` (Brax's and Playground's auto-reset): a finished arena restarts from the
+    initial state its first episode had, with that episode's id; the finished step's transition is kept."""
+    arena = jarena.build_arena("classic|domain:cartpole,time_limit:7,auto_reset:repeat")
+    assert arena.auto_reset == "repeat"
+    states, first = jarena.batch_reset(arena, jax.random.key(0), 4)
+    step = jax.jit(lambda s, a: jarena.batch_step(arena, s, a))
+    plain = jax.jit(lambda s, a: jarena.batch_step(arena, s, a, reset_done=False))
+    restarts = 0
+    for t in range(30):
+        actions = jnp.full((4,), t % 2, jnp.int32)
+        _, expected = plain(states, actions)
+        states, info = step(states, actions)
+        np.testing.assert_array_equal(info.final.observation["state"], expected.observation["state"])
+        np.testing.assert_array_equal(info.reward, expected.reward)
+        done = np.asarray(info.done)
+        restarts += done.sum()
+        np.testing.assert_array_equal(info.observation["state"][done], first.observation["state"][done])
+        np.testing.assert_array_equal(info.episode, first.episode)
+        for now, start in zip(jax.tree_util.tree_leaves(states.physics),
+                              jax.tree_util.tree_leaves(states.start[0].physics), strict=True):
+            np.testing.assert_array_equal(now[done], start[done])
+    assert restarts >= 4 * 4  # time limit 7: four restarts per arena in 30 steps
+    one_state, one_info = arena.reset(jax.random.key(1))  # the single-arena path stores its start too
+    for _ in range(7):
+        one_state, one_info = jarena.auto_reset(arena, one_state, jnp.int32(0))
+    assert bool(one_info.done) and int(one_info.step) == 0
+
+
+def test_unknown_or_mismatched_reset_strategies_are_clear_errors():
+    import dataclasses
+
+    import pytest
+
+    with pytest.raises(jarena.ArenaStringError, match="unknown auto_reset 'again'.*select, lazy, repeat"):
+        jarena.build_arena("classic|domain:cartpole,auto_reset:again")
+    arena = jarena.build_arena("classic|domain:cartpole")
+    with pytest.raises(ValueError, match="unknown auto_reset 'agian'; choose from select, lazy, repeat"):
+        dataclasses.replace(arena, auto_reset="agian")
+    state, _ = arena.reset(jax.random.key(0))  # made by a "select" arena: no stored start
+    with pytest.raises(ValueError, match="auto_reset 'repeat' but its state holds no first episode"):
+        jarena.auto_reset(dataclasses.replace(arena, auto_reset="repeat"), state, jnp.int32(0))

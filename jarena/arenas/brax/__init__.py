@@ -70,7 +70,8 @@ def _env_call(env: Any) -> tuple[str, dict[str, Any]]:
 
 
 def build(env: Any, backend: str = DEFAULT_BACKEND, action: Any = None, time_limit: int | None = None,
-          wrap: Any = None, eval_episodes: int | None = None, val_episodes: int | None = None) -> Arena:
+          wrap: Any = None, eval_episodes: int | None = None, val_episodes: int | None = None,
+          auto_reset: str | None = None) -> Arena:
     """Builds Brax env ``env`` as an arena.
 
     Args:
@@ -80,6 +81,9 @@ def build(env: Any, backend: str = DEFAULT_BACKEND, action: Any = None, time_lim
       time_limit: episode length in Brax env steps (default 1000).
       wrap: task transforms after the time limit, e.g. ``reward_scale(0.1)``.
       eval_episodes, val_episodes: sizes of the evaluation and validation splits.
+      auto_reset: how finished episodes restart under auto-reset: ``select``, ``lazy`` or ``repeat``
+        (each arena replays its first initial state, as Brax and Playground; fastest); default: the
+        domain's (see ``jarena.core.resets``).
     """
     name, options = _env_call(env)
     if backend not in BACKENDS:
@@ -99,7 +103,8 @@ def build(env: Any, backend: str = DEFAULT_BACKEND, action: Any = None, time_lim
     domain = Domain(name=name, dynamics=lambda: brax_env.brax_dynamics(env_obj, name=label),
                     sensor=lambda: brax_env.sensor(label), tasks={"brax": brax_env.brax_task},
                     time_limit=TIME_LIMIT)
-    arena = assemble("brax", {name: domain}, name, None, action, time_limit, wrap, eval_episodes, val_episodes)
+    arena = assemble("brax", {name: domain}, name, None, action, time_limit, wrap, eval_episodes, val_episodes,
+                     auto_reset=auto_reset)
     return dataclasses.replace(arena, name=label)
 
 

@@ -18,7 +18,7 @@ DOMAINS: dict[str, Domain] = {d.name: d for d in [cartpole.DOMAIN, pendulum.DOMA
 
 
 def build(domain: str, task: Any = None, action: Any = None, time_limit: int | None = None, wrap: Any = None,
-          eval_episodes: int | None = None, val_episodes: int | None = None) -> Arena:
+          eval_episodes: int | None = None, val_episodes: int | None = None, auto_reset: str | None = None) -> Arena:
     """Builds a classic arena.
 
     Args:
@@ -28,8 +28,12 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
       time_limit: episode length in dynamics steps (default: the domain's, as in Gymnasium).
       wrap: task transforms after the time limit, e.g. ``reward_scale(0.1)`` or a list.
       eval_episodes, val_episodes: sizes of the evaluation and validation splits.
+      auto_reset: how finished episodes restart under auto-reset: ``select``, ``lazy`` or ``repeat``
+        (each arena replays its first initial state, as Brax and Playground; fastest); default: the
+        domain's (see ``jarena.core.resets``).
     """
-    return assemble("classic", DOMAINS, domain, task, action, time_limit, wrap, eval_episodes, val_episodes)
+    return assemble("classic", DOMAINS, domain, task, action, time_limit, wrap, eval_episodes, val_episodes,
+                    auto_reset=auto_reset)
 
 
 register_arena_builder("classic", build, variants=lambda: variants("classic", DOMAINS), tags=("classic",))

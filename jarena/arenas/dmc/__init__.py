@@ -1,6 +1,7 @@
 """The DeepMind Control Suite on MJX, with each domain's dynamics shared by its tasks.
 
-Builder ``dmc``: ``dmc|domain:<domain>,task:<task>[,action:<tools>][,time_limit:N][,wrap:<tasks>]``.
+Builder ``dmc``: ``dmc|domain:<domain>,task:<task>[,action:<tools>][,time_limit:N][,wrap:<tasks>]
+[,auto_reset:select|lazy|repeat][,<simulation options>]``.
 Observations, rewards, initial states and episode lengths follow ``dm_control.suite``; tests compare
 them with dm_control's own task code on the same physics states.
 """
@@ -60,8 +61,8 @@ DOMAINS: Mapping[str, Domain] = _Domains()
 def build(domain: str, task: Any = None, action: Any = None, time_limit: int | None = None, wrap: Any = None,
           eval_episodes: int | None = None, val_episodes: int | None = None, iterations: int | None = None,
           ls_iterations: int | None = None, integrator: str | None = None, eulerdamp: bool | None = None,
-          timestep: float | None = None, max_contact_points: int | None = None, max_geom_pairs: int | None = None
-          ) -> Arena:
+          timestep: float | None = None, max_contact_points: int | None = None, max_geom_pairs: int | None = None,
+          auto_reset: str | None = None) -> Arena:
     """Builds a DeepMind Control Suite arena on MJX.
 
     Args:
@@ -75,6 +76,9 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
         simulation options (default: the suite model's): fewer solver iterations, ``integrator:euler``,
         ``eulerdamp:false``, a longer physics ``timestep`` (s) and MJX contact culling are faster on MJX
         and less exact, as mujoco_playground's models (see ``common.with_options``).
+      auto_reset: how finished episodes restart under auto-reset: ``select``, ``lazy`` or ``repeat``
+        (each arena replays its first initial state, as Brax and Playground; fastest); default: the
+        domain's (see ``jarena.core.resets``).
     """
     if domain in UNSUPPORTED:
         raise NotImplementedError(f"dmc domain {domain!r} cannot run on MJX: {UNSUPPORTED[domain]}")
@@ -85,7 +89,8 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
         dom = DOMAINS[domain]
         optioned = {name: common.with_options(dom.dynamics_for(name), *options) for name in dom.tasks}
         domains = {domain: dataclasses.replace(dom, task_dynamics={n: (lambda d=d: d) for n, d in optioned.items()})}
-    return assemble("dmc", domains, domain, task, action, time_limit, wrap, eval_episodes, val_episodes)
+    return assemble("dmc", domains, domain, task, action, time_limit, wrap, eval_episodes, val_episodes,
+                    auto_reset=auto_reset)
 
 
 def variants() -> list[tuple[str, tuple[str, ...]]]:

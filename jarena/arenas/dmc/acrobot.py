@@ -87,5 +87,5 @@ def swingup_sparse() -> Task:
 
 DOMAIN = Domain(name="acrobot", dynamics=dynamics, sensor=sensor,
                 tasks={"swingup": swingup, "swingup_sparse": swingup_sparse},
-                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), lazy_reset=True,
+                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), auto_reset="lazy",
                 tags={t: ("benchmark",) for t in ("swingup", "swingup_sparse")})

@@ -80,5 +80,5 @@ def catch() -> Task:
 
 
 DOMAIN = Domain(name="ball_in_cup", dynamics=dynamics, sensor=sensor, tasks={"catch": catch},
-                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), lazy_reset=True,
+                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), auto_reset="lazy",
                 tags={"catch": ("benchmark",)})

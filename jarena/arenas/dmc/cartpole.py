@@ -103,5 +103,5 @@ def swingup_sparse() -> Task:
 DOMAIN = Domain(name="cartpole", dynamics=dynamics, sensor=sensor,
                 tasks={"balance": balance, "balance_sparse": balance_sparse, "swingup": swingup,
                        "swingup_sparse": swingup_sparse},
-                time_limit=common.steps(_TIME_LIMIT, 0.01), lazy_reset=True,
+                time_limit=common.steps(_TIME_LIMIT, 0.01), auto_reset="lazy",
                 tags={t: ("benchmark",) for t in ("balance", "balance_sparse", "swingup", "swingup_sparse")})

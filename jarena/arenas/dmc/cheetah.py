@@ -101,5 +101,5 @@ def run() -> Task:
 
 
 DOMAIN = Domain(name="cheetah", dynamics=dynamics, sensor=sensor, tasks={"run": run},
-                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), lazy_reset=True,
+                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), auto_reset="lazy",
                 tags={"run": ("benchmark",)})

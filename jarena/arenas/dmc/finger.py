@@ -188,5 +188,5 @@ DOMAIN = Domain(name="finger", dynamics=dynamics, sensor=sensor,
                 tasks={"spin": spin, "turn_easy": turn_easy, "turn_hard": turn_hard},
                 task_dynamics={t: functools.partial(dynamics, t) for t in TASKS},
                 sensors={t: functools.partial(sensor, t) for t in TASKS},
-                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), lazy_reset=True,
+                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), auto_reset="lazy",
                 tags={t: ("benchmark",) for t in TASKS})

@@ -135,4 +135,4 @@ def swim() -> Task:
 
 DOMAIN = Domain(name="fish", dynamics=dynamics, sensor=sensor, tasks={"upright": upright_task, "swim": swim},
                 sensors={"swim": swim_sensor}, time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP),
-                lazy_reset=True, tags={t: ("benchmark",) for t in ("upright", "swim")})
+                auto_reset="lazy", tags={t: ("benchmark",) for t in ("upright", "swim")})

@@ -92,5 +92,5 @@ def hop() -> Task:
 
 
 DOMAIN = Domain(name="hopper", dynamics=dynamics, sensor=sensor, tasks={"stand": stand, "hop": hop},
-                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), lazy_reset=True,
+                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), auto_reset="lazy",
                 tags={t: ("benchmark",) for t in ("stand", "hop")})

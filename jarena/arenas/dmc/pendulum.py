@@ -68,5 +68,5 @@ def swingup() -> Task:
 
 
 DOMAIN = Domain(name="pendulum", dynamics=dynamics, sensor=sensor, tasks={"swingup": swingup},
-                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), lazy_reset=True,
+                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), auto_reset="lazy",
                 tags={"swingup": ("benchmark",)})

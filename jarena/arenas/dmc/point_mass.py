@@ -70,5 +70,5 @@ def easy() -> Task:
 
 
 DOMAIN = Domain(name="point_mass", dynamics=dynamics, sensor=sensor, tasks={"easy": easy},
-                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), lazy_reset=True,
+                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), auto_reset="lazy",
                 tags={"easy": ("benchmark",)})

@@ -113,5 +113,5 @@ def hard() -> Task:
 
 DOMAIN = Domain(name="reacher", dynamics=dynamics, sensor=sensor, tasks={"easy": easy, "hard": hard},
                 task_dynamics={"hard": lambda: dynamics("hard")},
-                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), lazy_reset=True,
+                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), auto_reset="lazy",
                 tags={t: ("benchmark",) for t in ("easy", "hard")})

@@ -95,5 +95,5 @@ def swimmer6() -> Task:
 
 
 DOMAIN = Domain(name="swimmer", dynamics=dynamics, sensor=sensor, tasks={"swimmer6": swimmer6},
-                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), lazy_reset=True,
+                time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), auto_reset="lazy",
                 tags={"swimmer6": ("benchmark",)})

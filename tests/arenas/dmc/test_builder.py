@@ -101,3 +101,20 @@ def test_simulation_options_apply_to_each_tasks_own_model():
             assert model.dof_damping[model.jnt_dofadr[hinge]] == pytest.approx(damping)
         target = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "target")
         assert model.site_size[target, 0] == pytest.approx(target_size)
+
+
+def test_auto_reset_is_a_build_option_and_suite_domains_default_to_lazy():
+    """dmc arenas reset lazily (fresh episodes, computed only when one ends); ``auto_reset:repeat`` stores
+    the first episode in the state and steps without tracing the reset (structure checked by eval_shape)."""
+    import jax
+    import jax.numpy as jnp
+
+    assert jarena.build_arena("dmc|domain:cheetah,task:run").auto_reset == "lazy"
+    arena = jarena.build_arena("dmc|domain:cheetah,task:run,auto_reset:repeat")
+    assert arena.auto_reset == "repeat"
+    states, _ = jax.eval_shape(lambda: jarena.batch_reset(arena, jax.random.key(0), 3))
+    assert states.start is not None and states.start[0].physics.qpos.shape == (3, arena.dynamics.render.model.nq)
+    stepped, info = jax.eval_shape(lambda s: jarena.batch_step(arena, s, jnp.zeros((3, 6))), states)
+    assert jax.tree_util.tree_structure(stepped) == jax.tree_util.tree_structure(states)
+    with pytest.raises(ArenaStringError, match="unknown auto_reset 'sometimes'"):
+        jarena.build_arena("dmc|domain:cheetah,task:run,auto_reset:sometimes")
