@@ -20,7 +20,7 @@ def make_config(cls: type[C], overrides: Mapping[str, Any] | None = None, *, age
 
     Raises:
       ConfigError: a key that ``cls`` does not define (listing the valid keys), or a value that cannot
-        be converted to the field's default type.
+        be converted to the field's annotated type (``null`` only where the annotation allows ``None``).
     """
     overrides = dict(overrides or {})
     fields = {f.name: f for f in dataclasses.fields(cls)}

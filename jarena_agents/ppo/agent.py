@@ -5,7 +5,9 @@ training adds ``init_training(key, arena) -> PPOTrainState`` and
 ``train(train_state, arena, num_updates) -> (train_state, metrics)``, a jittable chunk of updates.
 Each update collects ``rollout_length`` steps from ``num_arenas`` auto-resetting arenas, computes GAE
 (bootstrapping truncated episodes from ``info.final``), and runs ``epochs`` passes of ``minibatches``
-clipped-objective gradient steps. A whole run is a function of a key, so seeds ``vmap``.
+clipped-objective gradient steps; with ``unroll_length`` set, GAE is recomputed in each minibatch over
+shuffled segments of that length with the current value network, as Brax's PPO does. A whole run is a
+function of a key, so seeds ``vmap``.
 """
 
 from __future__ import annotations
