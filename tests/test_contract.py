@@ -18,6 +18,7 @@ LISTED = jarena.list_arenas() if os.environ.get("JARENA_FULL_CONTRACT") else (
     [a for a in jarena.list_arenas() if a.startswith("classic|")] + MUJOCO_SAMPLE)
 ARENAS = LISTED + [
     "classic|domain:cartpole,action:[sticky(0.2),noise(0.1),repeat(2),delay(1)],wrap:[reward_scale(0.5),success_bonus(1)]",
+    "classic|domain:pendulum,time_limit:20,action:delay(1),auto_reset:repeat",  # stored first episode + tool state
 ]
 
 
