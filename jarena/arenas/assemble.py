@@ -15,7 +15,7 @@ from jarena.building.grammar import ArenaStringError, Call
 from jarena.building.registry import unknown_choice
 from jarena.core.arena import Arena
 from jarena.core.chain import chain
-from jarena.core.resets import RESET_STRATEGIES
+from jarena.core.resets import reset_strategy
 from jarena.tasks.time_limit import time_limit as time_limit_task
 
 
@@ -46,8 +46,11 @@ def assemble(builder: str, domains: Mapping[str, Domain], domain: str, task: Any
         raise ArenaStringError(f"bad arguments in task {task_call}: {e}; signature: "
                                f"{task_call.name}{inspect.signature(factory)}") from None
 
-    if auto_reset is not None and auto_reset not in RESET_STRATEGIES:
-        raise ArenaStringError(unknown_choice("auto_reset", auto_reset, list(RESET_STRATEGIES)))
+    if auto_reset is not None:
+        try:
+            reset_strategy(auto_reset)
+        except ValueError as e:
+            raise ArenaStringError(str(e)) from None
 
     tasks = [base]
     limit = dom.time_limit if time_limit is None else time_limit

@@ -238,3 +238,37 @@ def resets(arena, n: int):
     """
     reset = jax.jit(lambda episode: arena.reset(None, None, episode))
     return jax.tree.map(lambda *leaves: np.stack(leaves), *[reset(np.int32(e)) for e in range(n)])
+
+
+def step_side_by_side(original: mujoco.MjModel, edited: mujoco.MjModel, rng: np.random.RandomState, steps: int,
+                      qpos=None, qvel=None) -> tuple[mujoco.MjData, mujoco.MjData, int]:
+    """Steps both models with MuJoCo from the same state (``qpos``/``qvel``, default the model's) under the
+    same random controls in [-1, 1]; returns both datas and the original's contacts summed over the steps,
+    for tests that an XML edit leaves the dynamics unchanged."""
+    a, b = mujoco.MjData(original), mujoco.MjData(edited)
+    if qpos is not None:
+        a.qpos[:] = b.qpos[:] = qpos
+    if qvel is not None:
+        a.qvel[:] = b.qvel[:] = qvel
+    contacts = 0
+    for _ in range(steps):
+        a.ctrl[:] = b.ctrl[:] = rng.uniform(-1, 1, original.nu)
+        mujoco.mj_step(original, a)
+        mujoco.mj_step(edited, b)
+        contacts += a.ncon
+    return a, b, contacts
+
+
+def mujoco_and_mjx_contacts(model: mujoco.MjModel, device: mjx.Model, blank: mjx.Data, qpos: np.ndarray
+                            ) -> tuple[list[bool], np.ndarray]:
+    """For each row of ``qpos`` (N, nq): MuJoCo's ``ncon > 0`` after ``mj_forward``, and
+    ``common.penetrating`` on MJX from ``blank`` with that qpos."""
+    from jarena.arenas.dmc import common
+    data = mujoco.MjData(model)
+    expected = []
+    for q in qpos:
+        data.qpos[:] = q
+        mujoco.mj_forward(model, data)
+        expected.append(data.ncon > 0)
+    ours = jax.jit(jax.vmap(lambda q: common.penetrating(device, blank.replace(qpos=q))))(qpos)
+    return expected, np.asarray(ours)

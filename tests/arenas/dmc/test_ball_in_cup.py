@@ -1,10 +1,15 @@
-import jax
 import mujoco
 import numpy as np
 
 import jarena
 from jarena.arenas.dmc import common
-from tests.arenas.dmc.reference import check_episode_length_and_timestep, compare, compare_states, reset_batch
+from tests.arenas.dmc.reference import (
+    check_episode_length_and_timestep,
+    compare,
+    compare_states,
+    mujoco_and_mjx_contacts,
+    reset_batch,
+)
 
 
 def _ball_near_cup(rng, physics):
@@ -28,17 +33,10 @@ def test_contact_check_matches_mujoco():
     rng = np.random.RandomState(0)
     qpos = np.zeros((200, 4))
     qpos[:, 2], qpos[:, 3] = rng.uniform(-0.2, 0.2, 200), rng.uniform(0.2, 0.5, 200)
-    data = mujoco.MjData(model)
-    expected = []
-    for q in qpos:
-        data.qpos[:] = q
-        mujoco.mj_forward(model, data)
-        expected.append(data.ncon > 0)
     blank = arena.dynamics.init(None, None)
-    device = common.device_model("ball_in_cup")
-    ours = jax.jit(jax.vmap(lambda q: common.penetrating(device, blank.replace(qpos=q))))(qpos)
+    expected, ours = mujoco_and_mjx_contacts(model, common.device_model("ball_in_cup"), blank, qpos)
     assert 5 < sum(expected) < 195  # both kinds of placement checked
-    np.testing.assert_array_equal(np.asarray(ours), expected)
+    np.testing.assert_array_equal(ours, expected)
 
 
 def test_initial_states_follow_the_suite():

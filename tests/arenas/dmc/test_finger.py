@@ -1,13 +1,19 @@
 import copy
 
-import jax
 import mujoco
 import numpy as np
 import pytest
 
 import jarena
 from jarena.arenas.dmc import common, finger
-from tests.arenas.dmc.reference import check_episode_length_and_timestep, compare, compare_states, reset_batch
+from tests.arenas.dmc.reference import (
+    check_episode_length_and_timestep,
+    compare,
+    compare_states,
+    mujoco_and_mjx_contacts,
+    reset_batch,
+    step_side_by_side,
+)
 
 TASKS = ["spin", "turn_easy", "turn_hard"]
 
@@ -80,14 +86,7 @@ def test_task_models():
             original = copy.copy(common.load_model("finger"))  # (not the cached model itself)
             original.dof_damping[common.Names(original).qvel("hinge")] = 0.03
         rng = np.random.RandomState(1)
-        a, b = mujoco.MjData(original), mujoco.MjData(edited)
-        a.qvel[:] = b.qvel[:] = rng.uniform(-5, 5, original.nv)
-        ncon = 0
-        for _ in range(200):
-            a.ctrl[:] = b.ctrl[:] = rng.uniform(-1, 1, original.nu)
-            mujoco.mj_step(original, a)
-            mujoco.mj_step(edited, b)
-            ncon += a.ncon
+        a, b, ncon = step_side_by_side(original, edited, rng, 200, qvel=rng.uniform(-5, 5, original.nv))
         assert ncon > 0  # the finger touched the spinner
         np.testing.assert_array_equal(a.qpos, b.qpos)
         np.testing.assert_array_equal(a.qvel, b.qvel)
@@ -101,16 +100,10 @@ def test_contact_check_matches_mujoco():
     rng = np.random.RandomState(0)
     qpos = np.stack([rng.uniform(*model.jnt_range[0], 96), rng.uniform(*model.jnt_range[1], 96),
                      rng.uniform(-np.pi, np.pi, 96)], axis=1)
-    data = mujoco.MjData(model)
-    expected = []
-    for q in qpos:
-        data.qpos[:] = q
-        mujoco.mj_forward(model, data)
-        expected.append(data.ncon > 0)
     blank = jarena.build_arena("dmc|domain:finger,task:turn_easy").dynamics.init(None, None)
-    ours = jax.jit(jax.vmap(lambda q: common.penetrating(device, blank.replace(qpos=q))))(qpos)
+    expected, ours = mujoco_and_mjx_contacts(model, device, blank, qpos)
     assert 10 < sum(expected) < 86  # both kinds of configuration checked
-    np.testing.assert_array_equal(np.asarray(ours), expected)
+    np.testing.assert_array_equal(ours, expected)
 
 
 def test_initial_states_follow_the_suite():

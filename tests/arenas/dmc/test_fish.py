@@ -5,7 +5,14 @@ from mujoco import mjx
 
 import jarena
 from jarena.arenas.dmc import common, fish
-from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, perturb, resets
+from tests.arenas.dmc.reference import (
+    assert_suite_episodes,
+    compare,
+    compare_resets,
+    perturb,
+    resets,
+    step_side_by_side,
+)
 
 TASKS = ["upright", "swim"]
 
@@ -48,15 +55,10 @@ def test_the_suite_model_needs_the_edit_and_the_edit_keeps_the_dynamics():
     ours = fish.model()
     assert ours.nmocap == 1 and ours.nq == suite_model.nq and ours.nu == suite_model.nu
     rng = np.random.RandomState(0)
-    a, b = mujoco.MjData(suite_model), mujoco.MjData(ours)
-    a.qpos[:] = b.qpos[:] = suite_model.qpos0
-    a.qpos[2] = b.qpos[2] = 0.0  # the torso through the floor: no contact either way
-    a.qvel[:] = b.qvel[:] = 0.1 * rng.randn(suite_model.nv)
-    for _ in range(500):
-        a.ctrl[:] = b.ctrl[:] = rng.uniform(-1, 1, suite_model.nu)
-        mujoco.mj_step(suite_model, a)
-        mujoco.mj_step(ours, b)
-        assert a.ncon == 0
+    qpos = suite_model.qpos0.copy()
+    qpos[2] = 0.0  # the torso through the floor: no contact either way
+    a, b, contacts = step_side_by_side(suite_model, ours, rng, 500, qpos=qpos, qvel=0.1 * rng.randn(suite_model.nv))
+    assert contacts == 0
     np.testing.assert_array_equal(a.qpos, b.qpos)
     np.testing.assert_array_equal(a.qvel, b.qvel)
     np.testing.assert_array_equal(a.sensordata, b.sensordata)

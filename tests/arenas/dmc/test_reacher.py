@@ -4,7 +4,13 @@ import pytest
 
 import jarena
 from jarena.arenas.dmc import common, reacher
-from tests.arenas.dmc.reference import check_episode_length_and_timestep, compare, compare_states, reset_batch
+from tests.arenas.dmc.reference import (
+    check_episode_length_and_timestep,
+    compare,
+    compare_states,
+    reset_batch,
+    step_side_by_side,
+)
 
 TASKS = ["easy", "hard"]
 
@@ -48,12 +54,7 @@ def test_target_edit_keeps_the_dynamics():
     edited = common.load_model("reacher", edit=reacher.EDITS["hard"])
     assert (edited.nq, edited.nv, edited.nu) == (original.nq, original.nv, original.nu)
     rng = np.random.RandomState(0)
-    a, b = mujoco.MjData(original), mujoco.MjData(edited)
-    a.qpos[:] = b.qpos[:] = rng.uniform(-2, 2, original.nq)
-    for _ in range(50):
-        a.ctrl[:] = b.ctrl[:] = rng.uniform(-1, 1, original.nu)
-        mujoco.mj_step(original, a)
-        mujoco.mj_step(edited, b)
+    a, b, _ = step_side_by_side(original, edited, rng, 50, qpos=rng.uniform(-2, 2, original.nq))
     np.testing.assert_array_equal(a.qpos, b.qpos)
     np.testing.assert_array_equal(a.qvel, b.qvel)
 

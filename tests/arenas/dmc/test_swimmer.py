@@ -5,7 +5,15 @@ from mujoco import mjx
 
 import jarena
 from jarena.arenas.dmc import common, swimmer
-from tests.arenas.dmc.reference import assert_suite_episodes, compare, compare_resets, compare_sensors, perturb, resets
+from tests.arenas.dmc.reference import (
+    assert_suite_episodes,
+    compare,
+    compare_resets,
+    compare_sensors,
+    perturb,
+    resets,
+    step_side_by_side,
+)
 
 
 def copy_target(physics, model, data):
@@ -47,13 +55,8 @@ def test_the_suite_model_needs_the_edit_and_the_edit_keeps_the_dynamics():
     ours = swimmer.model()
     assert ours.nmocap == 1 and ours.nq == suite_model.nq and ours.nu == suite_model.nu
     rng = np.random.RandomState(0)
-    a, b = mujoco.MjData(suite_model), mujoco.MjData(ours)
-    a.qpos[:] = b.qpos[:] = suite_model.qpos0 + 0.5 * rng.randn(suite_model.nq)
-    a.qvel[:] = b.qvel[:] = rng.randn(suite_model.nv)
-    for _ in range(500):
-        a.ctrl[:] = b.ctrl[:] = rng.uniform(-1, 1, suite_model.nu)
-        mujoco.mj_step(suite_model, a)
-        mujoco.mj_step(ours, b)
+    a, b, _ = step_side_by_side(suite_model, ours, rng, 500, qpos=suite_model.qpos0 + 0.5 * rng.randn(suite_model.nq),
+                                qvel=rng.randn(suite_model.nv))
     np.testing.assert_array_equal(a.qpos, b.qpos)
     np.testing.assert_array_equal(a.qvel, b.qvel)
     np.testing.assert_array_equal(a.sensordata, b.sensordata)
