@@ -28,6 +28,8 @@ class Domain:
         end together).
       task_dynamics: task name -> ``() -> Dynamics`` for tasks whose physics differ from the domain's
         (dm_control's finger spin lowers the spinner's damping; reacher hard shrinks its target).
+      unread_sensors: MJCF sensor types of the model that no task or observation of the domain reads
+        (e.g. humanoid's ``touch``), which a builder may leave out of the simulation.
     """
 
     name: str
@@ -40,6 +42,7 @@ class Domain:
     sensors: Mapping[str, Callable[[], Sensor]] = dataclasses.field(default_factory=dict)
     auto_reset: str = "select"
     task_dynamics: Mapping[str, Callable[[], Dynamics]] = dataclasses.field(default_factory=dict)
+    unread_sensors: tuple[str, ...] = ()
 
     def sensor_for(self, task: str) -> Sensor:
         return self.sensors.get(task, self.sensor)()

@@ -62,7 +62,7 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
           eval_episodes: int | None = None, val_episodes: int | None = None, iterations: int | None = None,
           ls_iterations: int | None = None, integrator: str | None = None, eulerdamp: bool | None = None,
           timestep: float | None = None, max_contact_points: int | None = None, max_geom_pairs: int | None = None,
-          auto_reset: str | None = None) -> Arena:
+          touch_sensors: bool | None = None, auto_reset: str | None = None) -> Arena:
     """Builds a DeepMind Control Suite arena on MJX.
 
     Args:
@@ -76,6 +76,8 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
         simulation options (default: the suite model's): fewer solver iterations, ``integrator:euler``,
         ``eulerdamp:false``, a longer physics ``timestep`` (s) and MJX contact culling are faster on MJX
         and less exact, as mujoco_playground's models (see ``common.with_options``).
+      touch_sensors: ``false`` leaves the model's touch sensors out of the simulation, for domains whose
+        tasks never read them (humanoid; Playground's humanoid has none).
       auto_reset: how finished episodes restart under auto-reset: ``select``, ``lazy`` or ``repeat``
         (each arena replays its first initial state, as Brax and Playground; fastest); default: the
         domain's (see ``jarena.core.resets``).
@@ -83,10 +85,15 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
     if domain in UNSUPPORTED:
         raise NotImplementedError(f"dmc domain {domain!r} cannot run on MJX: {UNSUPPORTED[domain]}")
     domains = DOMAINS
-    options = (iterations, ls_iterations, integrator, eulerdamp, timestep, max_contact_points, max_geom_pairs)
+    options = (iterations, ls_iterations, integrator, eulerdamp, timestep, max_contact_points, max_geom_pairs,
+               touch_sensors)
     if any(o is not None for o in options) and domain in SUITE:
         from jarena.arenas.dmc import common
         dom = DOMAINS[domain]
+        if touch_sensors is False and "touch" not in dom.unread_sensors:
+            raise ValueError(f"touch_sensors:false: dmc domain {domain!r} has no unread touch sensors (its "
+                             "tasks read them, or its model has none); domains that can leave them out: "
+                             f"{', '.join(d for d in SUITE if 'touch' in DOMAINS[d].unread_sensors)}")
         optioned = {name: common.with_options(dom.dynamics_for(name), *options) for name in dom.tasks}
         domains = {domain: dataclasses.replace(dom, task_dynamics={n: (lambda d=d: d) for n, d in optioned.items()})}
     return assemble("dmc", domains, domain, task, action, time_limit, wrap, eval_episodes, val_episodes,

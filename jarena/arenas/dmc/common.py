@@ -58,20 +58,53 @@ def suite_xml(domain: str, *args) -> tuple[str, dict]:
 
 
 @functools.cache
-def load_model(domain: str, *args, edit: Callable[[str], str] | None = None) -> mujoco.MjModel:
+def load_model(domain: str, *args, edit: Callable[[str], str] | None = None,
+               without_sensors: tuple[str, ...] = ()) -> mujoco.MjModel:
     """The suite's model of ``domain`` (cached), ready for MJX.
 
     ``edit`` may rewrite the XML first (e.g. to turn a task's target into a mocap body so that its
-    per-episode position lives in the physics state). The energy flag, which MJX does not implement and
-    the suite's tasks never read, is switched off.
+    per-episode position lives in the physics state). ``without_sensors`` names MJCF sensor types (e.g.
+    ``("touch",)``) to leave out, as mujoco_playground's humanoid leaves out its touch sensors; every
+    remaining sensor keeps its place in ``sensordata`` (a ``ValueError`` otherwise), so reads resolved on
+    the full model stay valid. The energy flag, which MJX does not implement and the suite's tasks never
+    read, is switched off.
     """
     xml, assets = suite_xml(domain, *args)
     if edit is not None:
         xml = edit(xml)
+    if without_sensors:
+        xml = _without_sensors(xml, without_sensors)
     model = mujoco.MjModel.from_xml_string(_with_contact_limits(xml), assets)
     for flag in _MJX_UNUSED_FLAGS:
         model.opt.enableflags &= ~int(flag)
+    if without_sensors:
+        _check_sensor_addresses(model, load_model(domain, *args, edit=edit), domain)
+    _SOURCES[id(model)] = (domain, args, edit)
     return model
+
+
+#: ``id(model) -> (domain, args, edit)`` of every model ``load_model`` made (they live in its cache).
+_SOURCES: dict[int, tuple] = {}
+
+
+def _without_sensors(xml: str, types: tuple[str, ...]) -> str:
+    """``xml`` without its sensors of the MJCF types ``types``."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(xml)
+    for block in root.iter("sensor"):
+        for element in [e for e in block if e.tag in types]:
+            block.remove(element)
+    return ET.tostring(root, encoding="unicode")
+
+
+def _check_sensor_addresses(model: mujoco.MjModel, full: mujoco.MjModel, domain: str) -> None:
+    for i in range(model.nsensor):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SENSOR, i)
+        j = mujoco.mj_name2id(full, mujoco.mjtObj.mjOBJ_SENSOR, name)
+        if int(model.sensor_adr[i]) != int(full.sensor_adr[j]):
+            raise ValueError(f"leaving sensors out of {domain}'s model moves sensor {name!r} in sensordata "
+                             f"(from {int(full.sensor_adr[j])} to {int(model.sensor_adr[i])})")
 
 
 #: MJX's contact-culling settings (custom numerics read by ``mjx.put_model``; -1: no limit).
@@ -169,13 +202,14 @@ def _positive_int(name: str, value) -> int:
 @functools.cache
 def with_options(dynamics: Dynamics, iterations: int | None = None, ls_iterations: int | None = None,
                  integrator: str | None = None, eulerdamp: bool | None = None, timestep: float | None = None,
-                 max_contact_points: int | None = None, max_geom_pairs: int | None = None) -> Dynamics:
+                 max_contact_points: int | None = None, max_geom_pairs: int | None = None,
+                 touch_sensors: bool | None = None) -> Dynamics:
     """``dynamics`` with MuJoCo simulation options changed (cached); ``None`` keeps the model's value.
 
     The suite's models allow 100 solver and 50 line-search iterations (MJX stops early at the solver's
     tolerance, but a batch waits for its slowest arena); some use RK4 and implicit Euler damping.
     mujoco_playground's versions of these models use 1-4 solver iterations, Euler, no Euler damping, a
-    longer physics timestep for some (humanoid) and MJX's contact culling: faster on MJX, less exact.
+    longer physics timestep for some (pendulum, reacher, swimmer) and MJX's contact culling: faster on MJX, less exact.
 
     Args:
       iterations, ls_iterations: solver and line-search iterations (positive ints).
@@ -184,9 +218,22 @@ def with_options(dynamics: Dynamics, iterations: int | None = None, ls_iteration
         number of physics steps per control step changes instead).
       max_contact_points, max_geom_pairs: MJX contact culling (positive ints): keep only the closest
         this many contacts per collision function, and geom pairs per pair type.
+      touch_sensors: ``False`` leaves the model's touch sensors out (MJX computes them from the contact
+        forces every physics step; Playground's humanoid has none). Only for models that ``load_model``
+        made, whose tasks never read them: the caller checks that.
     """
     from jarena.arenas.mjx.render import renderer_for
-    model = copy.copy(dynamics.render.model)
+    model = dynamics.render.model
+    if touch_sensors is not None and not isinstance(touch_sensors, bool):
+        raise ValueError(f"touch_sensors must be true or false, got {touch_sensors!r}")
+    if touch_sensors is False:
+        if id(model) not in _SOURCES:
+            raise ValueError(f"{dynamics.name}'s model was not loaded by load_model: cannot leave sensors out")
+        if not any(t == mujoco.mjtSensor.mjSENS_TOUCH for t in model.sensor_type):
+            raise ValueError(f"touch_sensors:false: {dynamics.name}'s model has no touch sensors")
+        domain, args, edit = _SOURCES[id(model)]
+        model = load_model(domain, *args, edit=edit, without_sensors=("touch",))
+    model = copy.copy(model)
     for name, value in (("iterations", iterations), ("ls_iterations", ls_iterations)):
         if value is not None:
             setattr(model.opt, name, _positive_int(name, value))

@@ -150,4 +150,4 @@ def run() -> Task:
 
 DOMAIN = Domain(name="humanoid", dynamics=dynamics, sensor=sensor, tasks={"stand": stand, "walk": walk, "run": run},
                 time_limit=common.steps(_TIME_LIMIT, _CONTROL_TIMESTEP), auto_reset="lazy",
-                tags={t: ("benchmark",) for t in ("stand", "walk", "run")})
+                tags={t: ("benchmark",) for t in ("stand", "walk", "run")}, unread_sensors=("touch",))

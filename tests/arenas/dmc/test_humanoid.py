@@ -48,3 +48,42 @@ def test_initial_states_do_not_penetrate():
     np.testing.assert_array_equal(qvel, 0)
     compare_resets(arena, "humanoid", "stand", states, infos)
     assert_suite_episodes(arena, "humanoid", "stand")
+
+
+def test_touch_sensors_can_be_left_out_without_changing_the_task():
+    """``touch_sensors:false`` (Playground's humanoid): the 18 touch sensors leave the model, every other
+    sensor keeps its place in sensordata, MuJoCo's dynamics are unchanged, and the arena's observation and
+    reward read the same values from both models' states."""
+    from mujoco import mjx
+
+    from tests.arenas.dmc.reference import step_side_by_side
+
+    full = jarena.build_arena("dmc|domain:humanoid,task:walk")
+    lean = jarena.build_arena("dmc|domain:humanoid,task:walk,touch_sensors:false")
+    a, b = full.dynamics.render.model, lean.dynamics.render.model
+    touch = mujoco.mjtSensor.mjSENS_TOUCH
+    assert list(a.sensor_type).count(touch) == 18 and touch not in list(b.sensor_type)
+    assert b.nsensor == a.nsensor - 18 and b.nsensordata == a.nsensordata - 18
+    np.testing.assert_array_equal(b.sensor_adr, a.sensor_adr[:b.nsensor])
+    # 150 physics steps from qpos0: it has fallen onto the floor, so the touch sensors read forces
+    da, db, contacts = step_side_by_side(a, b, np.random.RandomState(0), 150)
+    assert contacts > 0 and da.sensordata[b.nsensordata:].any()
+    np.testing.assert_array_equal(da.qpos, db.qpos)
+    np.testing.assert_array_equal(da.qvel, db.qvel)
+    np.testing.assert_array_equal(da.sensordata[:b.nsensordata], db.sensordata)
+    obs_a = full.sensor.observe(mjx.put_data(a, da), None)
+    obs_b = lean.sensor.observe(mjx.put_data(b, db), None)
+    for k in obs_a:
+        np.testing.assert_array_equal(obs_a[k], obs_b[k], err_msg=k)
+    from jarena.arenas.dmc import humanoid
+    assert float(humanoid.reward(mjx.put_data(a, da), 1.0)) == float(humanoid.reward(mjx.put_data(b, db), 1.0))
+
+
+@pytest.mark.parametrize("arena, message", [
+    ("dmc|domain:hopper,task:hop,touch_sensors:false", "'hopper' has no unread touch sensors.*humanoid"),
+    ("dmc|domain:cheetah,task:run,touch_sensors:false", "'cheetah' has no unread touch sensors"),
+    ("dmc|domain:humanoid,task:walk,touch_sensors:1", "touch_sensors must be true or false, got 1"),
+])
+def test_touch_sensors_option_refuses_domains_that_read_them(arena, message):
+    with pytest.raises(ValueError, match=message):
+        jarena.build_arena(arena)
