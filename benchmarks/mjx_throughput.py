@@ -21,8 +21,9 @@ variants so that load changes weigh on all alike. Variants:
   same reset semantics as ``playground``.
 - ``playground``: mujoco_playground's equivalent environment on MJX (``impl="jax"``, not Warp), with
   its Brax-training wrapper (episode length 1000, auto-reset), as Playground's trainers step it.
-- ``ours-noreset`` and ``ours-select`` (diagnostics): the arena step without auto-reset, and with the
-  select-based auto-reset (a reset computed for every arena at every step) instead of the lazy one.
+- ``ours-noreset``, ``ours-pg-noreset`` and ``ours-select`` (diagnostics): the arena step without
+  auto-reset (suite options, Playground's options), and with the select-based auto-reset (a reset computed
+  for every arena at every step) instead of the lazy one.
 - ``brax``: Brax's environment (``backend="mjx"``) with ``brax.envs.training.wrap`` (episode length
   1000, auto-reset).
 
@@ -69,10 +70,11 @@ ENVS = {
     "ant": {"ours": "brax|env:ant,backend:mjx", "brax": "ant", "gpu_steps": 100},
 }
 VARIANTS = ("raw", "ours", "ours-repeat", "ours-pg-options", "ours-pg-repeat", "playground", "brax", "ours-noreset",
-            "ours-select")
+            "ours-select", "ours-pg-noreset")
 #: (ours, peer) pairs compared in the summary: like for like where the names say so.
-COMPARISONS = (("ours", "raw"), ("ours-repeat", "raw"), ("ours-repeat", "brax"), ("ours", "brax"),
-               ("ours-pg-repeat", "playground"), ("ours-pg-options", "playground"))
+COMPARISONS = (("ours", "raw"), ("ours-repeat", "raw"), ("ours-noreset", "raw"), ("ours-repeat", "brax"),
+               ("ours", "brax"), ("ours-pg-repeat", "playground"), ("ours-pg-options", "playground"),
+               ("ours-pg-noreset", "playground"))
 
 
 def _random_actions(key, t, batch, dim):
@@ -179,6 +181,10 @@ def playground_options(env: str) -> str:
         index = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, name)
         if index >= 0:
             options += f",{name}:{int(model.numeric_data[model.numeric_adr[index]])}"
+    ours = jarena.build_arena(ENVS[env]["ours"]).dynamics.render.model
+    touch = int(mujoco.mjtSensor.mjSENS_TOUCH)
+    if touch in ours.sensor_type and touch not in model.sensor_type:  # humanoid: Playground drops them
+        options += ",touch_sensors:false"
     return options
 
 
@@ -189,6 +195,7 @@ OURS = {
     "ours-pg-options": (lambda env: "," + playground_options(env), None),
     "ours-pg-repeat": (lambda env: "," + playground_options(env) + ",auto_reset:repeat", None),
     "ours-noreset": (lambda env: "", "none"),
+    "ours-pg-noreset": (lambda env: "," + playground_options(env), "none"),
     "ours-select": (lambda env: "", "select"),
 }
 
@@ -201,7 +208,7 @@ def make_loop(variant: str, env: str, batch: int) -> tuple[Callable, Callable]:
 
 
 def applicable(variant: str, env: str) -> bool:
-    if variant in ("playground", "ours-pg-options", "ours-pg-repeat"):
+    if variant in ("playground", "ours-pg-options", "ours-pg-repeat", "ours-pg-noreset"):
         return "playground" in ENVS[env]
     if variant == "brax":
         return "brax" in ENVS[env]
@@ -211,7 +218,7 @@ def applicable(variant: str, env: str) -> bool:
 # ---------------------------------------------------------------------------------------------- timing
 
 
-def compile_variant(variant: str, env: str, batch: int, steps: int) -> dict:
+def compile_variant(variant: str, env: str, batch: int, steps: int, dump_hlo: str | None = None) -> dict:
     init, body = make_loop(variant, env, batch)
 
     def run(carry):
@@ -221,17 +228,22 @@ def compile_variant(variant: str, env: str, batch: int, steps: int) -> dict:
     t0 = time.perf_counter()
     compiled = jax.jit(run).lower(carry).compile()
     compile_s = time.perf_counter() - t0
+    if dump_hlo:
+        os.makedirs(dump_hlo, exist_ok=True)
+        with open(os.path.join(dump_hlo, f"{env}-{variant}-{batch}.hlo.txt"), "w") as f:
+            f.write(compiled.as_text())
     jax.block_until_ready(compiled(carry))  # warm-up
     return {"compiled": compiled, "carry": carry, "compile_s": compile_s}
 
 
-def time_env(env: str, variants: list[str], batch: int, steps: int, repeats: int) -> list[dict]:
+def time_env(env: str, variants: list[str], batch: int, steps: int, repeats: int, dump_hlo: str | None = None
+             ) -> list[dict]:
     progs, rows = {}, []
     for v in variants:
         if not applicable(v, env):
             continue
         try:
-            progs[v] = compile_variant(v, env, batch, steps)
+            progs[v] = compile_variant(v, env, batch, steps, dump_hlo)
         except Exception as e:  # a peer that fails to build is reported, not fatal
             rows.append({"env": env, "variant": v, "batch": batch, "error": f"{type(e).__name__}: {e}"[:300]})
             print(f"  {env} {v} B={batch}: {rows[-1]['error']}", flush=True)
@@ -280,6 +292,8 @@ def main(argv=None) -> None:
                         "per env, 100 for cartpole, cheetah and ant, 20 walker, 10 humanoid; 5 on CPU)")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--out", default=None, help="write rows and machine info as JSON here")
+    parser.add_argument("--dump-hlo", default=None, metavar="DIR", help="write each compiled program's optimised "
+                        "HLO to DIR/<env>-<variant>-<B>.hlo.txt")
     args = parser.parse_args(argv)
     gpu = jax.default_backend() != "cpu"
     batches = [int(b) for b in (args.batch_sizes or ("1024,8192,32768" if gpu else "16")).split(",")]
@@ -297,7 +311,7 @@ def main(argv=None) -> None:
     rows = []
     for env in envs:
         for b in batches:
-            new = time_env(env, variants, b, steps_for[env], args.repeats)
+            new = time_env(env, variants, b, steps_for[env], args.repeats, args.dump_hlo)
             rows += new
             for r in new:
                 if "error" not in r:
