@@ -131,9 +131,14 @@ def mjx_dynamics(model: mujoco.MjModel, substeps: int = 1, name: str = "mjx",
     def step(data, control, params):
         m = apply_params(device_model, params)
         data = data.replace(ctrl=jnp.asarray(control, data.ctrl.dtype))
-        if substeps == 1:
-            return physics_step(m, data)
-        return jax.lax.fori_loop(0, substeps, lambda _, d: physics_step(m, d), data)
+        # substeps x (integrate, observe), computed as integrate, (substeps - 1) x (observe, integrate),
+        # observe: the same work, but the loop body is in mjx.step's order, whose contact and constraint
+        # arrays are made and used within one iteration; XLA runs that loop faster on GPUs (walker with
+        # Playground's options, 10 substeps, H200: 9% more steps/s than a loop of physics_step).
+        data = _integrate(m, data)
+        if substeps > 1:
+            data = jax.lax.fori_loop(0, substeps - 1, lambda _, d: _integrate(m, _observe_state(m, d)), data)
+        return _observe_state(m, data)
 
     return Dynamics(init=init, step=step, control_spec=control_spec(model),
                     default_params=lambda: as_float32(MjxParams()),
