@@ -244,6 +244,7 @@ def time_env(env: str, variants: list[str], batch: int, steps: int, repeats: int
             continue
         try:
             progs[v] = compile_variant(v, env, batch, steps, dump_hlo)
+            print(f"  {env} B={batch} {v}: compiled in {progs[v]['compile_s']:.1f} s", flush=True)
         except Exception as e:  # a peer that fails to build is reported, not fatal
             rows.append({"env": env, "variant": v, "batch": batch, "error": f"{type(e).__name__}: {e}"[:300]})
             print(f"  {env} {v} B={batch}: {rows[-1]['error']}", flush=True)
