@@ -229,7 +229,7 @@ def with_options(dynamics: Dynamics, iterations: int | None = None, ls_iteration
     if touch_sensors is False:
         if id(model) not in _SOURCES:
             raise ValueError(f"{dynamics.name}'s model was not loaded by load_model: cannot leave sensors out")
-        if not any(t == mujoco.mjtSensor.mjSENS_TOUCH for t in model.sensor_type):
+        if mujoco.mjtSensor.mjSENS_TOUCH not in model.sensor_type:
             raise ValueError(f"touch_sensors:false: {dynamics.name}'s model has no touch sensors")
         domain, args, edit = _SOURCES[id(model)]
         model = load_model(domain, *args, edit=edit, without_sensors=("touch",))
