@@ -245,7 +245,12 @@ def _cmd_render(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="jarena", description="JAX-native arenas and agents.")
+    parser = argparse.ArgumentParser(
+        prog="jarena", description="JAX-native arenas and agents.",
+        epilog="Compiled programs are kept in JAX's persistent compilation cache, so a second run of the same agent "
+               "and arena starts at once: in ~/.cache/jarena/xla ($XDG_CACHE_HOME/jarena/xla), or the directory "
+               "in JARENA_COMPILATION_CACHE (off: JARENA_COMPILATION_CACHE=off; a JAX_COMPILATION_CACHE_DIR of "
+               "your own is used as it is).")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("list", help="list buildable arenas and registered agents")
@@ -334,10 +339,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from jarena.platform import avoid_cpu_eigen_deadlock
+    from jarena.platform import avoid_cpu_eigen_deadlock, enable_compilation_cache
 
     avoid_cpu_eigen_deadlock()
     args = build_parser().parse_args(argv)
+    enable_compilation_cache()
     try:
         return args.fn(args)
     except (ValueError, KeyError, FileNotFoundError) as e:

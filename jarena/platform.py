@@ -36,3 +36,31 @@ def avoid_cpu_eigen_deadlock(force: bool = False) -> bool:
         os.environ["XLA_FLAGS"] = (flags + " " + _FLAG).strip()
         return True
     return False
+
+
+#: Values of ``JARENA_COMPILATION_CACHE`` that turn the command line's persistent cache off.
+_OFF = ("0", "off", "false", "no", "none")
+
+
+def enable_compilation_cache(min_compile_secs: float = 1.0) -> str | None:
+    """Turns on JAX's persistent compilation cache for a command-line run; returns its directory or None.
+
+    MJX arenas take tens of seconds to compile (humanoid: 20-60 s on a GPU); with the cache, running the
+    same agent and arena again loads the compiled programs from disk. Programs that compiled in less
+    than ``min_compile_secs`` are not stored. A directory the user already gave JAX (``jax.config`` or
+    ``JAX_COMPILATION_CACHE_DIR``) is kept. Otherwise the directory is ``JARENA_COMPILATION_CACHE``, or
+    ``$XDG_CACHE_HOME/jarena/xla`` (``~/.cache/jarena/xla``) by default; set that variable to ``off`` to
+    turn the cache off. Entry points call this; importing jarena changes no JAX setting.
+    """
+    import jax
+
+    if jax.config.jax_compilation_cache_dir:
+        return jax.config.jax_compilation_cache_dir
+    setting = os.environ.get("JARENA_COMPILATION_CACHE", "").strip()
+    if setting.lower() in _OFF:
+        return None
+    cache_home = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    path = os.path.abspath(os.path.expanduser(setting or os.path.join(cache_home, "jarena", "xla")))
+    jax.config.update("jax_compilation_cache_dir", path)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", float(min_compile_secs))
+    return path
