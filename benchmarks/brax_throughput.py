@@ -286,6 +286,7 @@ def parse_args(argv=None):
 
 
 def main(argv=None) -> int:
+    jax.config.update("jax_enable_compilation_cache", False)  # compile times are measured: never load them
     from jarena.platform import avoid_cpu_eigen_deadlock
     avoid_cpu_eigen_deadlock()  # on 2-core CPU hosts, before JAX starts its CPU backend
     args = parse_args(argv)

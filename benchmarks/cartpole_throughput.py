@@ -362,6 +362,7 @@ def parse_args(argv=None):
 
 
 def main(argv=None) -> int:
+    jax.config.update("jax_enable_compilation_cache", False)  # compile times are measured: never load them
     args = parse_args(argv)
     env = environment()
     print(f"# {ARENA} on {env['device']} ({env['backend']}), jax {env['jax']}, gymnax {env['gymnax']}", flush=True)

@@ -284,6 +284,7 @@ def table(rows: list[dict]) -> str:
 
 
 def main(argv=None) -> None:
+    jax.config.update("jax_enable_compilation_cache", False)  # compile times are measured: never load them
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--envs", default=",".join(ENVS), help=f"comma-separated subset of {', '.join(ENVS)}")
     parser.add_argument("--variants", default=",".join(VARIANTS), help=f"subset of {', '.join(VARIANTS)}")

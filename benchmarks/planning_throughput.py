@@ -112,6 +112,7 @@ def table(rows: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    jax.config.update("jax_enable_compilation_cache", False)  # compile times are measured: never load them
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--arena", default="classic|domain:pendulum", help="arena string (continuous actions)")

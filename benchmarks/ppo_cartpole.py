@@ -21,6 +21,7 @@ import jarena_agents
 
 
 def main() -> None:
+    jax.config.update("jax_enable_compilation_cache", False)  # compile times are measured: never load them
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", default="1,1024", help="comma-separated numbers of vmapped seeds")
     parser.add_argument("--steps", type=int, default=500_000, help="environment steps per seed")

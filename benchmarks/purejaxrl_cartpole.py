@@ -78,6 +78,7 @@ def load_make_train(folder: str):
 
 
 def main(argv=None) -> None:
+    jax.config.update("jax_enable_compilation_cache", False)  # compile times are measured: never load them
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--purejaxrl", required=True, help="PureJaxRL's purejaxrl/ folder (ppo.py, wrappers.py)")
     parser.add_argument("--seeds", default="1,1024", help="comma-separated seed counts (vmapped)")
