@@ -134,7 +134,9 @@ def mjx_dynamics(model: mujoco.MjModel, substeps: int = 1, name: str = "mjx",
         # substeps x (integrate, observe), computed as integrate, (substeps - 1) x (observe, integrate),
         # observe: the same work, but the loop body is in mjx.step's order, whose contact and constraint
         # arrays are made and used within one iteration; XLA runs that loop faster on GPUs (walker with
-        # Playground's options, 10 substeps, H200: 9% more steps/s than a loop of physics_step).
+        # Playground's options, 10 substeps, H200: 9% more steps/s than a loop of physics_step). The price is
+        # compile time, as the peeled stages are compiled twice (walker 12.5 -> 17.5 s); a one-copy form with
+        # each stage behind a lax.cond ran slower than both (benchmarks/RESULTS.md, session 6).
         data = _integrate(m, data)
         if substeps > 1:
             data = jax.lax.fori_loop(0, substeps - 1, lambda _, d: _integrate(m, _observe_state(m, d)), data)
