@@ -51,7 +51,7 @@ def test_a_cache_directory_the_user_chose_is_kept(no_cache_configured, monkeypat
     assert no_cache_configured.jax_compilation_cache_dir == str(tmp_path / "mine")
 
 
-def test_the_command_line_stores_compiled_programs_and_reuses_them(tmp_path):
+def test_the_cache_stores_compiled_programs_and_a_new_process_loads_them(tmp_path):
     """Two runs of one script in fresh processes: the first writes cache entries, the second reads them."""
     cache = tmp_path / "cache"
     script = ("from jarena.platform import enable_compilation_cache\n"
