@@ -38,6 +38,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime
+import functools
 import json
 import os
 import platform
@@ -169,6 +170,7 @@ def _wrapped_loop(wrapped, dim: int, batch: int):
     return init, body
 
 
+@functools.cache  # each ours-pg-* variant asks; loading Playground's env and our arena once is enough
 def playground_options(env: str) -> str:
     """Build options that give our arena the simulation options of Playground's model of ``env``."""
     import mujoco
