@@ -7,4 +7,5 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # headless rendering; also keeps dm_c
 from jarena.platform import avoid_cpu_eigen_deadlock, enable_compilation_cache
 
 avoid_cpu_eigen_deadlock(force=True)  # before JAX starts its CPU backend
-enable_compilation_cache(min_compile_secs=0.2)  # the command line's cache, small programs too
+os.environ.setdefault("JARENA_COMPILATION_CACHE", os.path.expanduser("~/.cache/jarena/jax"))  # the suite's own
+enable_compilation_cache(min_compile_secs=0.2)  # small programs too
