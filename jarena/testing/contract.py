@@ -96,7 +96,7 @@ def check_vmap(arena: Arena, key: jax.Array, batch: int = 3) -> None:
     params = arena.default_params()
     keys = jax.random.split(key, batch)
     states, infos = jax.jit(jax.vmap(arena.reset, in_axes=(0, None)))(keys, params)
-    _, single = arena.reset(keys[0], params)
+    _, single = jax.eval_shape(arena.reset, keys[0], params)  # the unbatched structure and shapes
     chex.assert_trees_all_equal_structs(single, infos)
     for leaf, one in zip(jax.tree_util.tree_leaves(infos), jax.tree_util.tree_leaves(single), strict=True):
         assert leaf.shape == (batch,) + one.shape, f"{arena.name}: vmapped reset leaf shape {leaf.shape}"
@@ -139,8 +139,8 @@ def check_determinism(arena: Arena, key: jax.Array, steps: int = 50) -> None:
     if all(np.array_equal(a, b) for a, b in zip(_leaves(first[0].observation), _leaves(other[0].observation),
                                                 strict=True)):
         raise AssertionError(f"{arena.name}: different keys gave identical initial observations")
-    _, by_id_1 = arena.reset(jax.random.key(1), episode=7)
-    _, by_id_2 = arena.reset(jax.random.key(2), episode=7)
+    # two separate traces, so that a task reading host state while tracing (a counter, the clock) shows up
+    by_id_1, by_id_2 = (jax.jit(lambda k: arena.reset(k, episode=7)[1])(jax.random.key(i)) for i in (1, 2))
     _assert_trees_identical(by_id_1, by_id_2, f"{arena.name}: episode 7 depends on the key, not only its id")
 
 

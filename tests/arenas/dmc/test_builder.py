@@ -51,7 +51,7 @@ def test_timestep_and_contact_culling_are_build_options():
     assert culled_slots < full_slots
     # stepping: 5 physics steps of 5 ms per 25 ms control step instead of 10 of 2.5 ms
     import jax
-    state, _ = fast.reset(jax.random.key(0))
+    state, _ = jax.jit(fast.reset)(jax.random.key(0))
     stepped, _ = jax.jit(fast.step)(state, jax.numpy.zeros(fast.spec.action.shape))
     assert float(stepped.physics.time) == pytest.approx(0.025)
     with pytest.raises(ValueError, match="timestep 0.01 s must divide the control timestep 0.025 s"):
