@@ -80,20 +80,33 @@ def _cmd_evaluate(args) -> int:
 
     import jarena
     import jarena_agents
+    from jarena.runners.evaluate import run_episodes
 
     arena = jarena.build_arena(args.arena)
     config = _agent_config(args, arena)
     agent = jarena_agents.build_agent(args.agent, config)
     agent_state = None
     if args.checkpoint:
-        agent_state = _restore_policy(agent, arena, args.checkpoint)
+        agent_state = _restore_policy(agent, arena, args.checkpoint, args.select)
     episodes = list(arena.episodes(args.split))[: args.episodes] if args.episodes else None
     n = len(episodes) if episodes is not None else len(arena.episodes(args.split))
+    videos = min(_count(args.videos, "--videos"), n)
+    if videos:
+        from jarena.render.frames import RenderError, can_render
+        from jarena.render.record import check_video
+
+        try:
+            if not can_render(arena):
+                raise RenderError(f"arena {args.arena!r} has no renderer")
+            check_video(arena)
+        except RenderError as e:
+            print(f"warning: no videos: {e}", file=sys.stderr)
+            videos = 0
     print(f"evaluating {agent.name!r} on {args.arena!r}: {n} {args.split} episodes in parallel "
           f"on {jax.devices()[0].platform} ...", flush=True)
     start = time.perf_counter()
-    result = jarena.evaluate(agent, arena, jax.random.key(args.seed), split=args.split, episodes=episodes,
-                             agent_state=agent_state)
+    result, physics = run_episodes(agent, arena, jax.random.key(args.seed), split=args.split, episodes=episodes,
+                                   agent_state=agent_state, filmed=videos)
     seconds = time.perf_counter() - start
     steps = int(result.lengths.sum())
     print(f"done in {seconds:.1f} s (compile included), {steps} agent steps")
@@ -102,7 +115,30 @@ def _cmd_evaluate(args) -> int:
         with open(args.json, "w") as f:
             json.dump({"summary": result.summary(), "episodes": result.per_episode()}, f, indent=2)
         print(f"wrote {args.json}")
+    if videos:  # after the results: a failing encoder or renderer costs the videos only
+        _write_videos(arena, physics, result, Path(args.video_dir), videos)
     return 0
+
+
+def _count(value: int, flag: str) -> int:
+    if value < 0:
+        raise ValueError(f"{flag} must be 0 (none) or more, got {value}")
+    return value
+
+
+def _write_videos(arena, physics, result, folder: Path, videos: int) -> None:
+    """Writes the filmed episodes' videos; a failure is a warning on stderr that names the fix."""
+    from jarena.render.record import write_episodes
+    from jarena.training import VIDEO_FIXES
+
+    paths = [folder / f"{result.split}_episode_{int(i)}" for i in result.episodes[:videos]]
+    try:
+        written = write_episodes(arena, physics, result.lengths[:videos], paths)
+    except Exception as e:  # the results are printed and written already
+        print(f"warning: videos not written ({type(e).__name__}: {e}). To get videos: {VIDEO_FIXES}",
+              file=sys.stderr)
+        return
+    print(f"wrote {len(written)} video(s) to {folder}")
 
 
 def _trained_arena(run_dir: Path, arena):
@@ -122,29 +158,43 @@ def _trained_arena(run_dir: Path, arena):
     return trained_on
 
 
-def _restore_policy(agent, arena, run_dir: str):
-    """The deterministic policy of the latest checkpoint in ``run_dir`` (or its checkpoints/ folder)."""
+def _restore_policy(agent, arena, run_dir: str, select: str = "best"):
+    """The deterministic policy of a training run directory: the policy ``train_and_evaluate`` selected
+    (``best``: the best validated one, kept in ``best_policy/``) or the latest checkpoint's (``last``, and
+    for runs without a kept policy); a path to a checkpoints folder itself is taken as ``last``."""
     import jax
 
     from jarena.checkpoint import Checkpointer
+    from jarena.training import BEST_POLICY_DIR, selection
 
+    selection(select)
     if getattr(agent, "init_training", None) is None:
         raise ValueError(f"agent {agent.name!r} is not trainable and has no checkpoints")
     path = Path(run_dir)
     folder = path / "checkpoints" if (path / "checkpoints").is_dir() else path
+    if select == "best" and (path / BEST_POLICY_DIR).is_dir():
+        folder = path / BEST_POLICY_DIR
     checkpointer = Checkpointer(folder)
     if checkpointer.latest_step() is None:
         raise FileNotFoundError(f"no checkpoint found in {folder}")
     trained_on = _trained_arena(path, arena)
     template = jax.jit(agent.init_training, static_argnums=1)(jax.random.key(0), trained_on)
+    kept = folder.name == BEST_POLICY_DIR
+    if kept:
+        template = agent.policy(template, trained_on.spec, True)
     try:
-        train_state, _ = checkpointer.restore(template)
+        state, meta = checkpointer.restore(template)
     except Exception as e:  # orbax raises several types for a mismatched or damaged checkpoint
         raise ValueError(f"checkpoint in {folder} does not fit agent {agent.name!r} with config {agent.config} "
                          f"on {arena.name!r}: {e}") from e
     checkpointer.close()
+    if kept:
+        row = meta["validation"]
+        print(f"restored the best validated policy (step {int(row['env_steps'])}, validation return "
+              f"{row['return_mean']:.1f}) from {folder}")
+        return state  # made for the trained-on arena's spec, which equals arena's (checked above)
     print(f"restored checkpoint {checkpointer.latest_step()} from {folder}")
-    return agent.policy(train_state, arena.spec, True)
+    return agent.policy(state, arena.spec, True)
 
 
 def _cmd_train(args) -> int:
@@ -165,14 +215,15 @@ def _cmd_train(args) -> int:
     print(f"training {agent.name!r} on {args.arena!r} for {steps} {unit} "
           f"on {jax.devices()[0].platform} (seed {args.seed})", flush=True)
     result = train_and_evaluate(agent, arena, jax.random.key(args.seed), run_dir=args.run_dir,
-                                progress=not args.no_progress)
+                                progress=not args.no_progress, select=args.select,
+                                eval_videos=_count(args.videos, "--videos"))
     last = result.history[-1]
     print(f"trained {last['env_steps']} steps in {last['seconds']:.1f} s "
           f"({last['env_steps'] / max(last['seconds'], 1e-9):.3g} steps/s, compile included)")
     print(result.evaluation.table())
     if args.run_dir:
         print(f"run directory: {args.run_dir} (config, train.csv, validation.csv, evaluation.json, "
-              "learning_curve.png)")
+              "learning_curve.png" + (", videos/" if Path(args.run_dir, "videos").is_dir() else "") + ")")
     return 0
 
 
@@ -225,13 +276,14 @@ def _cmd_render(args) -> int:
 
     import jarena
     import jarena_agents
-    from jarena.render import record_video, renderer
+    from jarena.render import renderer
+    from jarena.runners import record_video
 
     arena = jarena.build_arena(args.arena)
     renderer(arena)  # a clear error before the agent is built
     config = _agent_config(args, arena)
     agent = jarena_agents.build_agent(args.agent, config)
-    agent_state = _restore_policy(agent, arena, args.checkpoint) if args.checkpoint else None
+    agent_state = _restore_policy(agent, arena, args.checkpoint, args.select) if args.checkpoint else None
     camera = int(args.camera) if args.camera.lstrip("-").isdigit() else args.camera
     print(f"filming {agent.name!r} on {args.arena!r}, episode(s) {args.episode} ...", flush=True)
     start = time.perf_counter()
@@ -269,6 +321,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", default="default", help="config name under configs/<agent>/<arena>/")
     p.add_argument("--set", action="append", type=_parse_override, metavar="KEY=VALUE",
                    help="override a config key (repeatable)")
+    p.add_argument("--select", default="best", choices=["best", "last"],
+                   help="which policy the final evaluation runs: the one with the best validation return (ties: "
+                        "the latest) or the last one")
+    p.add_argument("--videos", type=int, default=2, metavar="N",
+                   help="film the first N eval episodes into RUN_DIR/videos (0: none); written after the results, "
+                        "so a missing encoder or renderer costs only the videos")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(fn=_cmd_train)
 
@@ -283,8 +341,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", type=_parse_override, metavar="KEY=VALUE",
                    help="override a config key (repeatable)")
     p.add_argument("--checkpoint", default=None, metavar="RUN_DIR",
-                   help="evaluate the latest checkpoint of a training run directory")
+                   help="evaluate a training run's policy (see --select)")
+    p.add_argument("--select", default="best", choices=["best", "last"],
+                   help="with --checkpoint: the run's best validated policy (what `jarena train` evaluated) or "
+                        "its latest checkpoint")
     p.add_argument("--json", default=None, help="also write the summary and per-episode results to this file")
+    p.add_argument("--videos", type=int, default=0, metavar="N", help="film the first N episodes (0: none)")
+    p.add_argument("--video-dir", default="videos", help="folder for --videos")
     p.set_defaults(fn=_cmd_evaluate)
 
     p = sub.add_parser(
@@ -327,7 +390,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", type=_parse_override, metavar="KEY=VALUE",
                    help="override a config key (repeatable)")
     p.add_argument("--checkpoint", default=None, metavar="RUN_DIR",
-                   help="film the latest checkpoint of a training run directory")
+                   help="film a training run's policy (see --select)")
+    p.add_argument("--select", default="best", choices=["best", "last"],
+                   help="with --checkpoint: the run's best validated policy or its latest checkpoint")
     p.add_argument("--width", type=int, default=320, help="frame width in pixels (per episode)")
     p.add_argument("--height", type=int, default=240, help="frame height in pixels (per episode)")
     p.add_argument("--camera", default="-1", help="MuJoCo camera name or id (-1: free camera)")

@@ -14,6 +14,8 @@ from typing import Any
 
 import yaml
 
+from jarena.building.registry import AGENTS, RegistryError, unknown_choice
+
 
 def config_roots() -> list[Path]:
     roots = []
@@ -38,13 +40,26 @@ def _agent_name(agent: Any) -> str:
     return agent if isinstance(agent, str) else agent.name
 
 
+def _check_known(agent_name: str, roots: list[Path]) -> None:
+    """Raises the agent registry's ``RegistryError`` for a name that is neither a registered agent
+    (:data:`jarena.building.registry.AGENTS`) nor has a configs folder."""
+    if agent_name in AGENTS or any((root / agent_name).is_dir() for root in roots):
+        return
+    hint = "" if AGENTS.names() else " (agents register when jarena_agents is imported)"
+    raise RegistryError(unknown_choice("agent", agent_name, AGENTS.names()) + hint)
+
+
 def retrieve_config(agent: Any, arena: Any = None, name: str = "default") -> dict[str, Any]:
     """The config ``name`` for ``agent`` (a name or Agent) on ``arena`` (an Arena, name or string).
 
     Returns an empty dict when the agent has no configs at all (it then runs on its built-in
-    defaults); raises ``FileNotFoundError`` listing what exists when ``name`` is not found.
+    defaults); raises ``FileNotFoundError`` listing what exists when ``name`` is not found, and the
+    agent registry's ``RegistryError`` (a ``KeyError``) for an agent name that is neither registered
+    nor has configs.
     """
     agent_name = _agent_name(agent)
+    if isinstance(agent, str):
+        _check_known(agent_name, config_roots())
     arena_name = None if arena is None else _arena_name(arena)
     candidates, available = [], []
     for root in config_roots():

@@ -5,6 +5,10 @@ A trainable agent extends the agent protocol with ``init_training(key, arena) ->
 leading update axis), ``policy(train_state, spec, deterministic) -> agent_state`` and ``settings``
 (its config, with ``steps_per_update`` and ``num_updates``). Host work (progress bar, logs,
 validation) happens between compiled chunks, never per step.
+
+Which policy is evaluated at the end is a rule of :data:`SELECTIONS`: ``best`` (default) keeps the
+policy with the best validation return seen (ties: the latest), since RL training can degrade late in a
+run on some seeds and machines; ``last`` evaluates the final policy.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ import json
 import math
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -23,20 +28,63 @@ import numpy as np
 
 from jarena.checkpoint import Checkpointer
 from jarena.core.arena import Arena
-from jarena.render.frames import RenderError
-from jarena.runners.evaluate import evaluate, validate
+from jarena.render.frames import RenderError, can_render
+from jarena.render.record import check_video, write_episodes
+from jarena.runners.evaluate import run_episodes, validate
 from jarena.runners.results import EvalResult
+
+# Metrics of a chunk's updates that add up (counts) rather than average.
+SUMMED_METRICS = ("episodes", "faulted_episodes")
+BEST_POLICY_DIR = "best_policy"
+VIDEO_FIXES = ("for MP4 videos install an encoder (pip install imageio-ffmpeg); for MuJoCo arenas without a "
+               "display set MUJOCO_GL=egl (or osmesa) before importing jarena")
+
+
+@dataclasses.dataclass(frozen=True)
+class Selection:
+    """A rule for the policy ``train_and_evaluate`` evaluates.
+
+    Attributes:
+      replaces: ``(validation_return, best_so_far) -> bool``: whether a newly validated policy replaces
+        the kept one (``best_so_far`` is ``None`` before the first); ``None`` keeps none (the final
+        policy is evaluated).
+      description: for messages and ``--help``.
+    """
+
+    replaces: Callable[[float, float | None], bool] | None
+    description: str
+
+
+def _at_least_as_good(value: float, best: float | None) -> bool:
+    return bool(np.isfinite(value)) and (best is None or value >= best)  # ties: the latest
+
+
+SELECTIONS: dict[str, Selection] = {
+    "best": Selection(_at_least_as_good, "the policy with the best validation return (ties: the latest)"),
+    "last": Selection(None, "the policy at the end of training"),
+}
+
+
+def selection(name: str) -> Selection:
+    if name not in SELECTIONS:
+        raise ValueError(f"unknown select {name!r}; choose from "
+                         + ", ".join(f"{k} ({v.description})" for k, v in SELECTIONS.items()))
+    return SELECTIONS[name]
 
 
 @dataclasses.dataclass
 class TrainResult:
-    """train_state: the final training state; history: one dict per chunk; evaluation: on the eval split
-    (``None`` when stopped early)."""
+    """train_state: the final training state; history: one dict per chunk; validations: one dict per
+    validation; evaluation: on the eval split (``None`` when stopped early); policy: the agent state that
+    was evaluated (the selected policy); selected: which one it is (``select``, ``update``, ``env_steps``,
+    ``validation_return``)."""
 
     train_state: Any
     history: list[dict[str, float]]
     validations: list[dict[str, float]]
     evaluation: EvalResult | None
+    policy: Any = None
+    selected: dict | None = None
 
 
 def _check_trainable(agent) -> None:
@@ -46,12 +94,23 @@ def _check_trainable(agent) -> None:
                         "build one such as jarena_agents.build_agent('ppo')")
 
 
+def _positive_or_none(name: str, value) -> None:
+    if value is not None and (not isinstance(value, int | np.integer) or value < 1):
+        raise ValueError(f"train_and_evaluate: {name} must be a positive integer or None, got {value!r}")
+
+
+def _counts_or_none(name: str, value) -> None:
+    if value is not None and (not isinstance(value, int | np.integer) or value < 0):
+        raise ValueError(f"train_and_evaluate: {name} must be an integer >= 0 (0 disables) or None, got {value!r}")
+
+
 def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int | None = None,
                        chunk_updates: int | None = None, validate_every: int | None = None,
-                       checkpoint_every: int | None = None, run_dir: str | Path | None = None,
-                       progress: bool = True, stop_after_chunks: int | None = None, eval_videos: int = 2
-                       ) -> TrainResult:
-    """Trains ``agent`` on ``arena``, validating periodically, and evaluates it on the eval episodes.
+                       validations: int = 10, select: str = "best", checkpoint_every: int | None = None,
+                       run_dir: str | Path | None = None, progress: bool = True,
+                       stop_after_chunks: int | None = None, eval_videos: int = 2) -> TrainResult:
+    """Trains ``agent`` on ``arena``, validating periodically, and evaluates the selected policy on the eval
+    episodes.
 
     Args:
       agent: a trainable agent (e.g. ``build_agent("ppo", config)``).
@@ -59,108 +118,209 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
       key: PRNG key; the run is a deterministic function of it.
       total_steps: environment steps to train for (default: the agent config's ``total_steps``).
       chunk_updates: updates per compiled chunk (default: about 20 chunks per run).
-      validate_every: validate every this many chunks (default: 5; 0 disables).
+      validate_every: validate every this many chunks and after the last one (default: so that a run
+        validates ``validations`` times; 0 disables validation).
+      validations: how many times a run validates when ``validate_every`` is not given (default 10).
+      select: which policy the final evaluation runs (:data:`SELECTIONS`): ``best`` (default), the policy
+        with the best validation return (ties: the latest; the final one when nothing was validated), or
+        ``last``. The choice is reported in ``evaluation.selected``, the results table, ``evaluation.json``
+        and the plot.
       checkpoint_every: with ``run_dir``, checkpoint every this many chunks (default: 5) under
-        ``run_dir/checkpoints``; a run restarted in the same directory resumes from the latest one and
-        continues bit for bit.
+        ``run_dir/checkpoints``; a run restarted in the same directory resumes from the latest one (saying
+        so) and continues bit for bit. The best validated policy is kept in ``run_dir/best_policy``.
       run_dir: if given, writes ``config.json``, ``train.csv``, ``validation.csv``, TensorBoard event
         files (``tensorboard/``), ``evaluation.json``, ``learning_curve.png`` and videos there.
-      progress: show a progress bar with steps per second, current return and ETA.
+      progress: show a progress bar with steps per second, current return and ETA, and validation returns.
       stop_after_chunks: stop (without evaluating) after this many chunks in this call, as an
         interruption would; returns ``evaluation=None``. For tests and time-sliced jobs.
       eval_videos: with ``run_dir``, film the first this many eval episodes of the final evaluation into
         ``run_dir/videos/eval_episode_<i>.mp4`` (320 x 240, real time, at most 50 fps). The evaluation keeps
-        their physics states on device and renders them on the host afterwards; its results are the
-        same as without. Skipped (silently) when the arena's dynamics have no renderer; 0 disables.
+        their physics states on device and renders them on the host afterwards, once the results are
+        written; an arena without a renderer is filmed not at all, and a renderer or encoder that fails
+        is a warning naming the fix, never a lost result. 0 disables.
     """
     _check_trainable(agent)
-    settings = agent.settings
-    steps_per_update = settings.steps_per_update
-    total_steps = total_steps or settings.total_steps
-    num_updates = max(1, math.ceil(total_steps / steps_per_update))
-    chunk_updates = chunk_updates or max(1, math.ceil(num_updates / 20))
-    num_chunks = math.ceil(num_updates / chunk_updates)
-    num_updates = num_chunks * chunk_updates  # equal chunks: one compilation (may add < 1 chunk of steps)
-    validate_every = 5 if validate_every is None else validate_every
+    rule = selection(select)
+    for name, value in (("total_steps", total_steps), ("chunk_updates", chunk_updates),
+                        ("stop_after_chunks", stop_after_chunks), ("validations", validations)):
+        _positive_or_none(name, value)
+    for name, value in (("validate_every", validate_every), ("checkpoint_every", checkpoint_every),
+                        ("eval_videos", eval_videos)):
+        _counts_or_none(name, value)
+    steps_per_update = agent.settings.steps_per_update
+    total_steps = total_steps or agent.settings.total_steps
+    num_chunks, chunk_updates, validate_every = training_schedule(agent.settings, total_steps, chunk_updates,
+                                                                  validate_every, validations)
+    num_updates = num_chunks * chunk_updates
     run_path = Path(run_dir) if run_dir is not None else None
     if run_path is not None:
         run_path.mkdir(parents=True, exist_ok=True)
         (run_path / "config.json").write_text(json.dumps(
             {"agent": agent.name, "arena": arena.build_string or arena.name, "config": agent.config,
-             "total_steps": total_steps, "jax": jax.__version__, "device": str(jax.devices()[0])},
-            indent=2, default=str))
+             "total_steps": total_steps, "select": select, "jax": jax.__version__,
+             "device": str(jax.devices()[0])}, indent=2, default=str))
 
     train_state = jax.jit(agent.init_training, static_argnums=1)(key, arena)
     chunk = jax.jit(agent.train, static_argnums=(1, 2), donate_argnums=0)
-    history, validations = [], []
+    history, validations_done = [], []
     checkpoint_every = 5 if checkpoint_every is None else checkpoint_every
     checkpointer = Checkpointer(run_path / "checkpoints") if run_path is not None and checkpoint_every else None
+    keeper = _BestPolicy(agent, arena, rule, run_path / BEST_POLICY_DIR if checkpointer is not None else None)
     first_chunk = 0
     if checkpointer is not None and checkpointer.latest_step() is not None:
         first_chunk = checkpointer.latest_step()
         train_state, meta = checkpointer.restore(train_state, first_chunk)
-        history, validations = meta.get("history", []), meta.get("validations", [])
+        history, validations_done = meta.get("history", []), meta.get("validations", [])
+        keeper.resume(train_state, first_chunk)
+        print(f"resuming from step {first_chunk * chunk_updates * steps_per_update} of "
+              f"{num_updates * steps_per_update} (checkpoint {checkpointer.directory / str(first_chunk)})", flush=True)
     writer = _TensorBoard(run_path / "tensorboard") if run_path is not None else None
     bar = _progress(num_updates * steps_per_update, progress)
     bar.update(first_chunk * chunk_updates * steps_per_update, history[-1]["episode_return"] if history else 0.0)
     start = time.perf_counter() - (history[-1]["seconds"] if history else 0.0)
     done_updates = first_chunk * chunk_updates
+
+    def close():
+        bar.close()
+        for closing in (checkpointer, writer, keeper):
+            if closing is not None:
+                closing.close()
+
     for ran, index in enumerate(range(first_chunk, num_chunks)):
         if stop_after_chunks is not None and ran >= stop_after_chunks:
-            bar.close()
-            if checkpointer is not None:
-                checkpointer.close()
-            if writer is not None:
-                writer.close()
-            return TrainResult(train_state=train_state, history=history, validations=validations, evaluation=None)
+            close()
+            return TrainResult(train_state=train_state, history=history, validations=validations_done,
+                               evaluation=None)
         n = min(chunk_updates, num_updates - done_updates)
         train_state, metrics = chunk(train_state, arena, n)
         metrics = jax.device_get(metrics)
         done_updates += n
-        episodes = float(np.sum(metrics["episodes"]))
-        weights = np.asarray(metrics["episodes"], np.float64)
-        row = {"update": done_updates, "env_steps": done_updates * steps_per_update,
-               "seconds": time.perf_counter() - start,
-               "episode_return": float(np.sum(np.asarray(metrics["episode_return"]) * weights) / episodes)
-               if episodes else float("nan"), "episodes": episodes}
-        row.update({k: float(np.mean(v)) for k, v in metrics.items() if k not in ("episodes", "episode_return")})
+        row = _history_row(metrics, done_updates, steps_per_update, time.perf_counter() - start)
         history.append(row)
         bar.update(n * steps_per_update, row["episode_return"])
         if writer is not None:
             writer.log("train", row)
-        if validate_every and ((index + 1) % validate_every == 0) and index + 1 < num_chunks:
+        if validate_every and ((index + 1) % validate_every == 0 or index + 1 == num_chunks):
             result = validate(agent, arena, jax.random.key(index),
                               agent_state=agent.policy(train_state, arena.spec, True))
-            validations.append({"update": done_updates, "env_steps": row["env_steps"], **result.summary()})
+            validations_done.append({"update": done_updates, "env_steps": row["env_steps"], **result.summary()})
             if writer is not None:
-                writer.log("validation", validations[-1])
-            bar.note(f"validation return {validations[-1]['return_mean']:.1f}")
+                writer.log("validation", validations_done[-1])
+            kept = keeper.offer(train_state, index + 1, validations_done[-1])
+            bar.note(f"validation return {validations_done[-1]['return_mean']:.1f} at step {row['env_steps']}"
+                     + (" (best so far: kept)" if kept else ""))
         if checkpointer is not None and ((index + 1) % checkpoint_every == 0 or index + 1 == num_chunks):
-            checkpointer.save(index + 1, train_state, {"history": history, "validations": validations})
-    bar.close()
-    if checkpointer is not None:
-        checkpointer.close()
-    if writer is not None:
-        writer.close()
-    videos = 0
-    if run_path is not None and eval_videos:
-        from jarena.render.frames import can_render
+            checkpointer.save(index + 1, train_state, {"history": history, "validations": validations_done})
+    close()
+    policy, selected = keeper.choice(train_state, history[-1] if history else None,
+                                     validations_done[-1] if validations_done else None)
+    evaluation = _evaluate_and_write(agent, arena, policy, selected, run_path, eval_videos, history,
+                                     validations_done)
+    return TrainResult(train_state=train_state, history=history, validations=validations_done,
+                       evaluation=evaluation, policy=policy, selected=selected)
 
-        videos = min(int(eval_videos), arena.num_eval_episodes) if can_render(arena) else 0
-    policy = agent.policy(train_state, arena.spec, True)
-    try:
-        evaluation = evaluate(agent, arena, jax.random.key(0), agent_state=policy, videos=videos,
-                              video_dir=run_path / "videos" if videos else None)
-    except RenderError as e:  # raised before the rollout compiles; the evaluation matters more than videos
-        warnings.warn(f"evaluating without videos: {e}", stacklevel=2)
-        evaluation = evaluate(agent, arena, jax.random.key(0), agent_state=policy)
-    if run_path is not None:
-        _write_csv(run_path / "train.csv", history)
-        _write_csv(run_path / "validation.csv", validations)
-        (run_path / "evaluation.json").write_text(json.dumps(
-            {"summary": evaluation.summary(), "episodes": evaluation.per_episode()}, indent=2))
-        _plot(run_path / "learning_curve.png", history, validations, evaluation, agent.name, arena.name)
-    return TrainResult(train_state=train_state, history=history, validations=validations, evaluation=evaluation)
+
+def training_schedule(settings, total_steps: int | None, chunk_updates: int | None, validate_every: int | None,
+                      validations: int) -> tuple[int, int, int]:
+    """``(num_chunks, chunk_updates, validate_every)`` of a run: equal chunks (one compilation; may add less
+    than a chunk of steps), about 20 of them by default, validated every ``validate_every`` chunks and after
+    the last (0: never), by default ``validations`` times in all."""
+    num_updates = max(1, math.ceil((total_steps or settings.total_steps) / settings.steps_per_update))
+    chunk_updates = chunk_updates or max(1, math.ceil(num_updates / 20))
+    num_chunks = math.ceil(num_updates / chunk_updates)
+    validate_every = max(1, num_chunks // validations) if validate_every is None else validate_every
+    return num_chunks, chunk_updates, validate_every
+
+
+def _history_row(metrics: dict, updates: int, steps_per_update: int, seconds: float) -> dict[str, float]:
+    """One chunk's row: counts summed, the finished episodes' return weighted by their number, the rest
+    averaged over the chunk's updates."""
+    weights = np.asarray(metrics["episodes"], np.float64)
+    episodes = float(np.sum(weights))
+    row = {"update": updates, "env_steps": updates * steps_per_update, "seconds": seconds,
+           "episode_return": float(np.sum(np.asarray(metrics["episode_return"]) * weights) / episodes)
+           if episodes else float("nan")}
+    row.update({k: float(np.sum(metrics[k])) for k in SUMMED_METRICS if k in metrics})
+    row.update({k: float(np.mean(v)) for k, v in metrics.items() if k not in SUMMED_METRICS + ("episode_return",)})
+    return row
+
+
+class _BestPolicy:
+    """Keeps the selected policy as training goes: a host copy (the train state's buffers are donated to
+    the next chunk) and, with a run directory, a checkpoint in ``directory`` so a resumed run keeps it."""
+
+    def __init__(self, agent, arena: Arena, rule: Selection, directory: Path | None):
+        self.agent, self.arena, self.rule = agent, arena, rule
+        self.saver = Checkpointer(directory, max_to_keep=1) if directory is not None and rule.replaces else None
+        self.policy, self.row, self.chunk = None, None, None
+
+    def offer(self, train_state, chunk: int, row: dict) -> bool:
+        """Keeps the validated policy of ``train_state`` (after ``chunk`` chunks) if the rule prefers it."""
+        if self.rule.replaces is None or not self.rule.replaces(row["return_mean"],
+                                                                 None if self.row is None else self.row["return_mean"]):
+            return False
+        self.policy = jax.device_get(self.agent.policy(train_state, self.arena.spec, True))
+        self.row, self.chunk = row, chunk
+        if self.saver is not None:
+            self.saver.save(chunk, self.policy, {"validation": row})
+        return True
+
+    def resume(self, train_state, chunk: int) -> None:
+        """Restores the kept policy of a run resumed at ``chunk`` (one kept later is found again, identically,
+        as the run repeats those chunks)."""
+        if self.saver is None or self.saver.latest_step() is None or self.saver.latest_step() > chunk:
+            return
+        template = self.agent.policy(train_state, self.arena.spec, True)
+        policy, meta = self.saver.restore(template)
+        self.policy, self.row, self.chunk = jax.device_get(policy), meta["validation"], self.saver.latest_step()
+
+    def choice(self, train_state, last_row: dict | None, last_validation: dict | None):
+        """``(policy, selected)``: the kept policy, or the final one when none was kept."""
+        if self.policy is not None:
+            return self.policy, {"select": "best", "update": int(self.row["update"]),
+                                 "env_steps": int(self.row["env_steps"]),
+                                 "validation_return": float(self.row["return_mean"])}
+        final_validated = (last_validation is not None and last_row is not None
+                           and last_validation["update"] == last_row["update"])
+        reason = "last" if self.rule.replaces is None else "last (nothing validated)"
+        return self.agent.policy(train_state, self.arena.spec, True), {
+            "select": reason, "update": int(last_row["update"]) if last_row else 0,
+            "env_steps": int(last_row["env_steps"]) if last_row else 0,
+            "validation_return": float(last_validation["return_mean"]) if final_validated else None}
+
+    def close(self) -> None:
+        if self.saver is not None:
+            self.saver.close()
+
+
+def _evaluate_and_write(agent, arena: Arena, policy, selected: dict, run_path: Path | None, eval_videos: int,
+                        history, validations) -> EvalResult:
+    """Evaluates ``policy`` on the eval split and writes the results; videos come last, and a failure in
+    rendering or encoding them is a warning (the results are already on disk)."""
+    videos = 0
+    if run_path is not None and eval_videos and can_render(arena):
+        try:
+            check_video(arena)  # before compiling: no OpenGL here means no videos, not no results
+            videos = min(int(eval_videos), arena.num_eval_episodes)
+        except RenderError as e:
+            warnings.warn(f"evaluating without videos: {e}", stacklevel=3)
+    evaluation, physics = run_episodes(agent, arena, jax.random.key(0), agent_state=policy, filmed=videos)
+    evaluation = dataclasses.replace(evaluation, selected=selected)
+    if run_path is None:
+        return evaluation
+    _write_csv(run_path / "train.csv", history)
+    _write_csv(run_path / "validation.csv", validations)
+    (run_path / "evaluation.json").write_text(json.dumps(
+        {"summary": evaluation.summary(), "selected": selected, "episodes": evaluation.per_episode()}, indent=2))
+    _plot(run_path / "learning_curve.png", history, validations, evaluation, agent.name, arena.name)
+    if videos:
+        paths = [run_path / "videos" / f"eval_episode_{int(i)}" for i in evaluation.episodes[:videos]]
+        try:
+            write_episodes(arena, physics, evaluation.lengths[:videos], paths)
+        except Exception as e:  # a renderer or encoder failing: the results above are written already
+            warnings.warn(f"videos not written ({type(e).__name__}: {e}); the results are in {run_path}. "
+                          f"To get videos: {VIDEO_FIXES}", stacklevel=3)
+    return evaluation
 
 
 def _write_csv(path: Path, rows: list[dict[str, float]]) -> None:
@@ -185,7 +345,12 @@ def _plot(path: Path, history, validations, evaluation, agent: str, arena: str) 
     if validations:
         ax.plot([r["env_steps"] for r in validations], [r["return_mean"] for r in validations], "o-",
                 label="validation")
-    ax.axhline(evaluation.summary()["return_mean"], color="k", ls="--", label="final evaluation")
+    selected = evaluation.selected or {}
+    if selected.get("validation_return") is not None:
+        ax.plot([selected["env_steps"]], [selected["validation_return"]], "*", color="C3", markersize=14,
+                label=f"evaluated policy ({selected['select']}, step {selected['env_steps']})")
+    ax.axhline(evaluation.summary()["return_mean"], color="k", ls="--",
+               label=f"final evaluation of that policy ({evaluation.summary()['return_mean']:.1f})")
     ax.set_xlabel("environment steps")
     ax.set_ylabel("episode return")
     ax.set_title(f"{agent} on {arena}")

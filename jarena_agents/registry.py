@@ -5,10 +5,12 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
+from jarena.building import registry
 from jarena.building.registry import Registry
 from jarena.core.agent import Agent
 
-AGENTS: Registry[Callable[[Mapping[str, Any]], Agent]] = Registry("agent")
+# The registry object lives in jarena (a layer below), where jarena.retrieve_config looks names up.
+AGENTS: Registry[Callable[[Mapping[str, Any]], Agent]] = registry.AGENTS
 
 
 def register_agent(name: str, factory: Callable[[Mapping[str, Any]], Agent], *, tags: tuple[str, ...] = (),

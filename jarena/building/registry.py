@@ -69,3 +69,9 @@ def decorator(registry: Registry, name: str, tags: tuple[str, ...] = ()) -> Call
         registry.register(name, fn, tags=tags)
         return fn
     return wrap
+
+
+AGENTS: Registry[Callable[..., Any]] = Registry("agent")
+"""Agent factories by name, filled by ``jarena_agents.register_agent``. It lives here, below the agents, so
+that ``jarena`` (e.g. :func:`jarena.retrieve_config`) can tell a known agent name from a typo without
+importing ``jarena_agents``."""

@@ -4,17 +4,24 @@ Every function works on a batch of B arenas at once (the batch axis replaces Age
 dictionaries): ``info`` leaves have a leading axis B, actions are returned with a leading axis B, and
 the agent state holds whatever per-arena values the agent keeps (recurrent belief, planner warm start,
 phase). Agents built by :func:`jarena_agents.build_agent` implement it; runners accept any ``Agent``.
+
+Before compiling, runners call :func:`check_agent_fits`: an agent that does not fit the arena (made
+for other arenas, or whose ``init``/``act`` fail on its spec or state) raises :class:`AgentArenaMismatch`
+naming both and what differs, instead of an error from deep inside the trace.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 
+from jarena.core.arena import Arena
+from jarena.core.batching import batch_reset
 from jarena.core.types import Info
 
 PyTree = Any
@@ -49,6 +56,9 @@ class Agent:
       phase: ``(state, info) -> int32 (B,)``; the agent's current phase (e.g. for scripted oracles).
       privileged: whether ``act`` needs privileged simulator state (oracles, planners).
       config: the config the agent was built with (not part of equality or hashing).
+      made_for: names of the dynamics (``arena.dynamics.name``) the agent is written for, e.g.
+        ``("cartpole",)`` for a scripted oracle reading the classic cartpole's physics; empty: any arena
+        its functions fit. Not part of equality or hashing.
     """
 
     name: str
@@ -61,3 +71,52 @@ class Agent:
     phase: Callable[[PyTree, Info], jax.Array] = _phase_zero
     privileged: bool = False
     config: Any = dataclasses.field(default=None, compare=False, hash=False)
+    made_for: tuple[str, ...] = dataclasses.field(default=(), compare=False, hash=False)
+
+    def check_fits(self, arena: Arena) -> None:
+        """:func:`check_agent_fits` of this agent and ``arena`` (cached)."""
+        check_agent_fits(self, arena)
+
+
+class AgentArenaMismatch(ValueError):
+    """An agent does not fit an arena (made for other arenas, or its functions fail on the arena's spec)."""
+
+
+@functools.lru_cache(maxsize=64)
+def check_agent_fits(agent: Agent, arena: Arena) -> None:
+    """Raises :class:`AgentArenaMismatch` unless ``agent`` fits ``arena``; cached per (agent, arena).
+
+    Two checks, before anything compiles:
+
+    - the arena's dynamics must be one of ``agent.made_for``, when the agent declares any (the family:
+      the trace below cannot tell, as JAX clamps out-of-range indices instead of failing);
+    - one abstract step on a batch of one arena -- ``reset``, ``init``, ``act`` (with the privileged
+      state if the agent asks for it), ``step`` with that action and ``update`` -- must trace under
+      ``jax.eval_shape`` (shapes only: nothing is compiled or run).
+    """
+    if agent.made_for and arena.dynamics.name not in agent.made_for:
+        made_for = " or ".join(map(repr, agent.made_for))
+        raise AgentArenaMismatch(_mismatch(agent, arena, f"{agent.name} is made for arenas with {made_for} "
+                                                         f"dynamics; got {arena.name}, whose dynamics are "
+                                                         f"{arena.dynamics.name!r}"))
+    spec = arena.spec
+    try:
+        jax.eval_shape(lambda: _one_step(agent, arena, spec))
+    except Exception as e:  # any failure of the agent's functions on this arena is the mismatch
+        raise AgentArenaMismatch(_mismatch(agent, arena, f"{type(e).__name__}: {e}")) from e
+
+
+def _one_step(agent: Agent, arena: Arena, spec: Any) -> PyTree:
+    """One runner step on a batch of one arena: what :func:`check_agent_fits` traces."""
+    state, info = batch_reset(arena, jax.random.key(0), 1)
+    agent_state = agent.init(jax.random.key(1), spec, 1)
+    privileged = arena.privileged(state) if agent.privileged else None
+    action, agent_state = agent.act(agent_state, info, jax.random.key(2), privileged)
+    state, info = jax.vmap(arena.step)(state, action)
+    return agent.update(agent_state, info, action)
+
+
+def _mismatch(agent: Agent, arena: Arena, reason: str) -> str:
+    return (f"agent {agent.name!r} does not fit arena {arena.build_string or arena.name!r}: {reason}\n"
+            f"  the arena's observation spec: {arena.observation_spec}\n"
+            f"  the arena's action spec: {arena.action_spec}")

@@ -11,11 +11,13 @@ import jax
 import jax.numpy as jnp
 
 from jarena.core import episodes as episodes_lib
+from jarena.core import faults
 from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.resets import reset_strategy
 from jarena.core.spec import Spec, spec_from_value
 from jarena.core.task import Task
 from jarena.core.tool import ActionTool
+from jarena.core.tree import tree_where
 from jarena.core.types import ArenaParams, ArenaState, Final, Info, KeyWords, Outcome, Transition
 
 PyTree = Any
@@ -30,6 +32,20 @@ class ArenaSpec:
     goal_dim: int = 0
     name: str = "arena"
     no_op: Any = dataclasses.field(default=None, compare=False, hash=False)
+
+
+def _params_mismatch(expected: ArenaParams, params: Any, where: str) -> str:
+    """Why ``params`` does not fit: not an ArenaParams, or which pieces differ from ``expected``'s."""
+    if not isinstance(params, ArenaParams):
+        return (f"{where}: params must be an ArenaParams (as arena.default_params() returns), got "
+                f"{type(params).__name__}")
+    lines = [f"{where}: params has the wrong structure (start from arena.default_params() and .replace leaves):"]
+    for piece in ("dynamics", "sensor", "task", "tool"):
+        want, got = (jax.tree_util.tree_structure(getattr(p, piece)) for p in (expected, params))
+        if want != got:
+            lines.append(f"  params.{piece}: expected a {type(getattr(expected, piece)).__name__} of structure "
+                         f"{want}, got a {type(getattr(params, piece)).__name__} of structure {got}")
+    return "\n".join(lines)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,6 +85,23 @@ class Arena:
         """The default params pytree; replace leaves (or vmap over them) to vary arenas."""
         return ArenaParams(dynamics=self.dynamics.default_params(), sensor=self.sensor.default_params(),
                            task=self.task.default_params(), tool=self.tool.default_params())
+
+    @functools.cached_property
+    def params_structure(self) -> jax.tree_util.PyTreeDef:
+        """Pytree structure of ``default_params()``, which the params of ``reset`` and ``step`` must share."""
+        return jax.tree_util.tree_structure(self.default_params())
+
+    def _check_params(self, params: ArenaParams | None, where: str) -> ArenaParams:
+        """``params`` (the defaults for ``None``) if it has the structure of ``default_params()``.
+
+        Raises ``TypeError`` naming the piece that differs and what was expected. Only the (static)
+        structure is compared, so this costs nothing under ``jit`` and works under ``vmap``.
+        """
+        if params is None:
+            return self.default_params()
+        if isinstance(params, ArenaParams) and jax.tree_util.tree_structure(params) == self.params_structure:
+            return params
+        raise TypeError(_params_mismatch(self.default_params(), params, f"{self.name}: {where}"))
 
     @functools.cached_property
     def action_spec(self) -> Spec:
@@ -127,13 +160,16 @@ class Arena:
         Args:
           key: PRNG key. Without ``episode`` it draws a training episode id; it also seeds the episodes
             that follow under auto-reset. May be ``None`` when ``episode`` is given.
-          params: arena params (``default_params()`` when ``None``).
+          params: arena params (``default_params()`` when ``None``); an :class:`ArenaParams` of the
+            structure of ``default_params()`` (else a ``TypeError``).
           episode: int32 episode id; the episode is a pure function of the arena, params and this id.
+            A concrete id outside ``[0, 2^31)`` raises ``ValueError``; under ``jit`` ids are not checked.
 
         Returns:
           ``(state, info)`` with ``info.step == 0`` and zero reward.
         """
-        params = self.default_params() if params is None else params
+        params = self._check_params(params, "reset")
+        episodes_lib.check_episode_ids(episode, f"{self.name}: reset")
         if episode is None:
             if key is None:
                 raise ValueError("reset() needs a key, an episode id, or both")
@@ -161,10 +197,25 @@ class Arena:
         """Applies ``action`` and returns the new state and info.
 
         The action's shape and dtype are validated statically against ``action_spec`` (a clear
-        ``SpecError`` otherwise); its values are not: dynamics clip out-of-range controls themselves, as
-        Gymnasium's do.
+        ``SpecError`` otherwise); its values too when concrete (given eagerly, not traced): a ``Discrete``
+        value out of range or a non-finite float is a ``SpecError``. Floats outside a ``Box``'s bounds are
+        not: dynamics clip out-of-range controls themselves, as Gymnasium's do. ``params`` is checked as
+        in :meth:`reset`.
+
+        Faults (traced, so under ``jit`` and ``vmap`` too; ``info.fault``, see :mod:`jarena.core.faults`):
+
+        - an action with a non-finite float or an integer out of range (``Discrete(n)`` given ``-1`` or
+          ``n``) is ``INVALID_ACTION``: the step runs ``no_op()`` in its place (never an out-of-bounds
+          index or a huge force), and ends the episode. Floats outside a ``Box``'s bounds are valid.
+        - a physics state (``Dynamics.is_finite``), observation or reward with a NaN or an infinity after
+          the step is ``NONFINITE_STATE``.
+
+        A faulted step is ``terminated`` (no bootstrapping from it), its reward is 0 and ``success`` false,
+        and the non-finite entries of its observation (``info.observation`` and
+        ``info.final.observation``) are 0, so a learner's value of the final observation is finite.
+        ``reward_terms`` and ``metrics`` are left as the task computed them.
         """
-        params = self.default_params() if params is None else params
+        params = self._check_params(params, "step")
         action = self.action_spec.validate(action, "action")
 
         def low_level_step(carry, control):
@@ -175,19 +226,38 @@ class Arena:
                                                    params.task)
             return (next_physics, task_state), outcome
 
+        # An invalid action is never simulated: the no-op runs in its place (and the step faults).
+        invalid = ~faults.valid_action(self.action_spec, action)
+        no_op = jax.tree_util.tree_map(lambda n, a: jnp.asarray(n, a.dtype), self.no_op(), action)
+        action = tree_where(invalid, no_op, action)
         (physics, task_state), outcome, tool_state = self.tool.step(
             state.tool, action, (state.physics, state.task), low_level_step, params.tool,
             self.dynamics.control_spec)
         state = state.replace(physics=physics, task=task_state, tool=tool_state, step=state.step + 1)
-        return state, self._info(state, outcome, params)
+        return state, self._info(state, outcome, params, invalid)
 
-    def _info(self, state: ArenaState, outcome: Outcome, params: ArenaParams) -> Info:
+    def _info(self, state: ArenaState, outcome: Outcome, params: ArenaParams,
+              invalid_action: jax.Array | None = None) -> Info:
+        """The info of ``state``; after a step (``invalid_action`` given) with its fault applied."""
         observation = self.sensor.observe(state.physics, params.sensor)
+        reward = jnp.asarray(outcome.reward, jnp.float32)
+        terminated = jnp.asarray(outcome.terminated, bool)
+        success = jnp.asarray(outcome.success, bool)
+        fault = jnp.zeros((), jnp.int32)
+        if invalid_action is not None:
+            finite = self.dynamics.is_finite(state.physics) & faults.all_finite(observation) & jnp.isfinite(reward)
+            fault = faults.code(invalid_action, ~finite)
+            faulted = fault != 0
+            observation = faults.zero_nonfinite(observation)
+            reward = jnp.where(faulted, jnp.zeros((), jnp.float32), reward)
+            terminated = terminated | faulted
+            success = success & ~faulted
         return Info(observation=observation,
-                    reward=jnp.asarray(outcome.reward, jnp.float32),
-                    terminated=jnp.asarray(outcome.terminated, bool),
+                    reward=reward,
+                    terminated=terminated,
                     truncated=jnp.asarray(outcome.truncated, bool),
-                    success=jnp.asarray(outcome.success, bool), goal=outcome.goal,
+                    success=success, goal=outcome.goal,
                     step=state.step, episode=state.episode, reward_terms=outcome.reward_terms,
                     metrics=outcome.metrics,
-                    final=Final(observation=observation, goal=outcome.goal, step=state.step, episode=state.episode))
+                    final=Final(observation=observation, goal=outcome.goal, step=state.step, episode=state.episode),
+                    fault=fault)

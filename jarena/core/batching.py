@@ -42,10 +42,11 @@ def auto_reset(arena: Arena, state: ArenaState, action: PyTree, params: ArenaPar
                ) -> tuple[ArenaState, Info]:
     """Steps one arena and, where the episode ended, starts a new one in the same call.
 
-    The returned info keeps the finished step's reward, terminated, truncated, success, reward terms
-    and metrics (so the transition is not lost), while its observation, goal, step and episode are the
-    new episode's; ``info.final`` holds the finished episode's terminal observation, goal, length and
-    id. The new episode follows ``arena.auto_reset`` (by default a fresh training episode drawn from
+    The returned info keeps the finished step's reward, terminated, truncated, success, fault, reward
+    terms and metrics (so the transition is not lost), while its observation, goal, step and episode are
+    the new episode's; ``info.final`` holds the finished episode's terminal observation, goal, length
+    and id. A faulted step (``info.fault``) is terminated, so its episode is replaced as any finished
+    one. The new episode follows ``arena.auto_reset`` (by default a fresh training episode drawn from
     ``state.rng``; see :mod:`jarena.core.resets`). vmap it for batches.
     """
     params = arena.default_params() if params is None else params

@@ -7,7 +7,9 @@ from collections.abc import Callable
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 
+from jarena.core import faults
 from jarena.core.spec import Spec
 
 PyTree = Any
@@ -33,6 +35,9 @@ class Dynamics:
       name: a short name for messages.
       after_reset: optional ``(physics, params) -> physics`` run after the task placed the initial state
         (see ``Task.initialize``) to recompute derived quantities, as MuJoCo's ``mj_forward``.
+      finite: optional ``physics -> bool scalar``, whether the physics state is finite, checked by
+        ``Arena.step`` after every step (see :meth:`is_finite`); set it to check a few essential arrays
+        (MJX: ``qpos``, ``qvel``, ``act``) instead of every floating leaf of a large state.
     """
 
     init: Callable[[jax.Array, PyTree], PyTree]
@@ -44,9 +49,16 @@ class Dynamics:
     render: Callable[..., Any] | None = None
     name: str = "dynamics"
     after_reset: Callable[[PyTree, PyTree], PyTree] | None = None
+    finite: Callable[[PyTree], jax.Array] | None = None
 
     def no_op_control(self) -> PyTree:
         return self.no_op() if self.no_op is not None else self.control_spec.zeros()
+
+    def is_finite(self, physics: PyTree) -> jax.Array:
+        """bool scalar: ``physics`` holds no NaN or infinity (``finite``, or else every floating leaf)."""
+        if self.finite is not None:
+            return jnp.asarray(self.finite(physics), bool)
+        return faults.all_finite(physics)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 EVAL_BASE = 0
 VAL_BASE = 1 << 20
@@ -39,6 +40,23 @@ def split_episodes(split: str, num_val: int, num_eval: int) -> range:
     if split == "train":
         return range(TRAIN_LOW, TRAIN_HIGH)
     raise ValueError(f"unknown split {split!r}; valid splits are {list(SPLITS)}")
+
+
+def check_episode_ids(episodes, where: str = "episode") -> None:
+    """Raises ``ValueError`` when concrete episode ids (an int or an int array) fall outside
+    ``[0, TRAIN_HIGH)``, naming the valid ranges of the splits.
+
+    Ids under ``jit`` or ``vmap`` (tracers) are unknown and not checked: a negative id there names a
+    valid but unlisted episode (its bits are reinterpreted as uint32).
+    """
+    if episodes is None or isinstance(episodes, jax.core.Tracer):
+        return
+    ids = np.atleast_1d(np.asarray(episodes))
+    bad = ids[(ids < 0) | (ids >= TRAIN_HIGH)]
+    if bad.size:
+        raise ValueError(f"{where}: invalid episode id(s) {bad[:5].tolist()}; valid ids are in [0, 2^31) (eval "
+                         f"from {EVAL_BASE}, val from {VAL_BASE}, train in [{TRAIN_LOW}, {TRAIN_HIGH}); "
+                         "see arena.episodes(split))")
 
 
 def piece_key(episode: jax.Array, piece: int) -> jax.Array:

@@ -19,11 +19,17 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import Protocol
 
-if TYPE_CHECKING:
-    from jarena.core.arena import Arena
-    from jarena.core.types import ArenaParams, ArenaState, Info
+from jarena.core.types import ArenaParams, ArenaState, Info
+
+
+class Arena(Protocol):
+    """What a strategy needs of an arena (:class:`jarena.core.arena.Arena`, which sits above this module)."""
+
+    name: str
+
+    def reset(self, key, params: ArenaParams | None = None, episode=None) -> tuple[ArenaState, Info]: ...
 
 
 def fresh_episode(arena: Arena, state: ArenaState, params: ArenaParams) -> tuple[ArenaState, Info]:

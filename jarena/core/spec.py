@@ -10,6 +10,15 @@ Every spec has ``sample(key)``, ``contains(x)`` (a traceable boolean), ``zeros()
 which checks shape and dtype *statically* (works under ``jit``) and raises a ``SpecError`` naming the
 offending path and what was expected. Plain dicts and tuples of specs are accepted wherever a spec is,
 through :func:`as_spec`.
+
+``validate`` also checks *values* where it can: when ``x`` is concrete (not a ``jax`` tracer, i.e. given
+eagerly), a :class:`Discrete` value must lie in ``[0, n)`` and every element of a float :class:`Box` must be
+finite (NaN or inf raise a ``SpecError``). Under ``jit`` or ``vmap`` values are unknown and not checked.
+Box values outside ``[low, high]`` are never an error: dynamics clip their controls, as Gymnasium's do.
+
+Dtype rule of ``validate``: values are returned cast to the spec's dtype. An integer array into a float
+Box converts as ``x.astype(dtype)`` does (exact up to 2^24 in magnitude for float32); a float into an
+integer spec (Discrete or int Box) and a bool into a non-bool spec (or the reverse) are refused.
 """
 
 from __future__ import annotations
@@ -23,7 +32,7 @@ import numpy as np
 
 
 class SpecError(ValueError):
-    """An array does not match its spec (shape, dtype or structure)."""
+    """An array does not match its spec (shape, dtype, structure, or a concrete value out of range)."""
 
 
 def _kind(dtype) -> str:
@@ -39,6 +48,11 @@ def _kind(dtype) -> str:
 
 def _describe(x) -> str:
     return f"shape {tuple(np.shape(x))} and dtype {jnp.result_type(x)}"
+
+
+def _concrete(x: jax.Array) -> bool:
+    """Whether ``x``'s values are known now (eager), not a tracer under ``jit``, ``vmap`` or ``grad``."""
+    return not isinstance(x, jax.core.Tracer)
 
 
 class Spec:
@@ -137,7 +151,13 @@ class Box(Spec):
                         jnp.asarray(self.high, self.dtype))
 
     def validate(self, x, name="value"):
-        """Checks shape and dtype kind statically; returns ``x`` cast to the spec's dtype."""
+        """Checks ``x`` and returns it cast to the spec's dtype.
+
+        Shape and dtype kind are checked statically (also under ``jit``): an int array into a float Box
+        is converted as ``x.astype(dtype)`` does; a float into an int Box and bools into a non-bool Box
+        are refused. When ``x`` is concrete, every element of a float Box must be finite (NaN and inf
+        raise). Values outside ``[low, high]`` are accepted: dynamics clip them, as Gymnasium's do.
+        """
         if isinstance(x, Mapping | tuple | list):
             raise SpecError(f"{name}: expected an array of shape {self.shape} and dtype {self.dtype.name}, "
                             f"got a {type(x).__name__}")
@@ -148,7 +168,11 @@ class Box(Spec):
         want, got = _kind(self.dtype), _kind(x.dtype)
         if want != got and not (want == "float" and got == "int"):
             raise SpecError(f"{name}: expected a {want} array of dtype {self.dtype.name}, got {_describe(x)}")
-        return x.astype(self.dtype)
+        x = x.astype(self.dtype)
+        if want == "float" and _concrete(x) and not np.all(np.isfinite(np.asarray(x))):
+            raise SpecError(f"{name}: non-finite values (NaN or inf) in {np.asarray(x)}; expected finite "
+                            f"values of {self!r} (values outside the bounds are clipped)")
+        return x
 
 
 class Discrete(Spec):
@@ -189,12 +213,17 @@ class Discrete(Spec):
         return jnp.zeros((), self.dtype)
 
     def validate(self, x, name="value"):
+        """Checks that ``x`` is a scalar integer (statically) and, when concrete, in ``[0, n)``; returns it
+        cast to the spec's dtype. Floats and bools are refused."""
         if isinstance(x, Mapping | tuple | list):
             raise SpecError(f"{name}: expected a scalar integer in [0, {self.n}), got a {type(x).__name__}")
         x = jnp.asarray(x)
         if x.shape != () or _kind(x.dtype) != "int":
             raise SpecError(f"{name}: expected a scalar integer in [0, {self.n}) (Discrete({self.n})), "
                             f"got {_describe(x)}")
+        if _concrete(x) and not 0 <= int(x) < self.n:
+            raise SpecError(f"{name}: {int(x)} is out of range; expected a scalar integer in [0, {self.n}) "
+                            f"(Discrete({self.n}))")
         return x.astype(self.dtype)
 
 

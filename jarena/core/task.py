@@ -52,6 +52,9 @@ class Task:
         state (dm_control's ``initialize_episode``: a swing-up task starts the pole hanging down, a reach
         task places its target). Runs on the dynamics' initial physics, before ``reset``; the default
         keeps the physics as the dynamics made it.
+      has_success: whether the task defines a success criterion (sets ``outcome.success``); a chain has one
+        when any of its tasks does. Without one (the suite's walker or cheetah), results report the success
+        rate as "n/a" rather than 0%.
     """
 
     update: Callable[[PyTree, Outcome, Transition, PyTree], tuple[Outcome, PyTree]]
@@ -60,6 +63,7 @@ class Task:
     horizon: int | None = None
     name: str = "task"
     initialize: Callable[[jax.Array, PyTree, PyTree, PyTree], PyTree] = _keep_physics
+    has_success: bool = False
 
     @staticmethod
     def chain(*tasks: Task) -> Task:
@@ -92,4 +96,5 @@ class Task:
         return Task(update=update, reset=reset, initialize=initialize,
                     default_params=lambda: tuple(t.default_params() for t in tasks),
                     horizon=min(horizons) if horizons else None,
+                    has_success=any(t.has_success for t in tasks),
                     name="chain(" + ", ".join(t.name for t in tasks) + ")")

@@ -105,6 +105,10 @@ class Info:
       episode: int32 episode id (see ``arena.episodes``).
       final: the episode this step belongs to (:class:`Final`); differs from the fields above only
         where :func:`jarena.auto_reset` started a new episode.
+      fault: int32 bitmask of what went wrong in this step, 0 for none (always 0 after reset); bits
+        and names in :mod:`jarena.core.faults` (``faults.describe(info.fault)``). A faulted step is
+        terminated, with reward 0 and the non-finite entries of its observation set to 0 (see
+        ``Arena.step``). Like ``terminated``, it stays the finished step's after an auto-reset.
     """
 
     observation: dict[str, Array]
@@ -118,11 +122,17 @@ class Info:
     reward_terms: dict[str, Array] = struct.field(default_factory=dict)
     metrics: dict[str, Array] = struct.field(default_factory=dict)
     final: Final | None = None  # always set by Arena.reset / Arena.step / auto_reset
+    fault: Array = struct.field(default_factory=lambda: jnp.zeros((), jnp.int32))
 
     @property
     def done(self) -> Array:
         """``terminated | truncated``."""
         return self.terminated | self.truncated
+
+    @property
+    def faulted(self) -> Array:
+        """bool: the step faulted (``fault != 0``); such a step is also ``terminated``."""
+        return self.fault != 0
 
 
 @struct.dataclass

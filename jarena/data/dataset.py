@@ -34,17 +34,15 @@ from zarr import codecs
 
 from jarena.data.chunks import read_rows, write_rows
 from jarena.data.files import lock, remove_partial_files
-from jarena.data.schema import GROUPS, DatasetError, Field, Schema, as_fields, conform
+from jarena.data.loader import Loader
+from jarena.data.schema import GROUPS, ROWS_PER, STEP_FIELDS, DatasetError, Field, Schema, as_fields, conform
 
 FORMAT = 1
 MAX_CHUNK_ROWS = 16384
 MODES = ("r", "a", "w")
 SCHEMA_ATTR, COMMIT = "jarena_dataset", "commit"
-STEP_FIELDS = {"reward": Field((), "float32"), "terminated": Field((), "bool"), "truncated": Field((), "bool")}
 TRAJECTORY_FIELDS = {"length": Field((), "int64"), "episode": Field((), "int64")}
 _ARGUMENT = {"observation": "observations", "action": "actions", "goal": "goal"}
-ROWS_PER = {"observation": "observation", "action": "step", "goal": "trajectory", "step": "step",
-            "trajectory": "trajectory"}
 
 
 def _compressors(field: Field):
@@ -287,7 +285,6 @@ class TrajectoryDataset:
 
     def loader(self, batch_size: int, **kwargs):
         """A :class:`jarena.data.loader.Loader` over this dataset (same arguments after ``batch_size``)."""
-        from jarena.data.loader import Loader
 
         return Loader(self, batch_size, **kwargs)
 

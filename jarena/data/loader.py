@@ -29,8 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jarena.data.chunks import is_raw, read_row_set, read_rows
-from jarena.data.dataset import GROUPS, ROWS_PER, STEP_FIELDS, TrajectoryDataset
-from jarena.data.schema import DatasetError
+from jarena.data.schema import GROUPS, ROWS_PER, STEP_FIELDS, DatasetError
 
 MODES = ("transition", "window", "window_across", "trajectory")
 DEFAULT_BUDGET = 2 << 30
@@ -140,7 +139,7 @@ class Loader:
       prefetch: batches read ahead by :meth:`batches` when streaming.
     """
 
-    def __init__(self, dataset: TrajectoryDataset, batch_size: int, *, mode: str = "transition",
+    def __init__(self, dataset: Any, batch_size: int, *, mode: str = "transition",
                  length: int | None = None, trajectories: Sequence[int] | None = None,
                  memory_budget: int | None = None, prefetch: int = 2):
         if mode not in MODES:

@@ -13,7 +13,7 @@ Positions are *logical* per arena: 0 is the oldest stored item, ``count - 1`` th
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -21,9 +21,7 @@ from flax import struct
 
 from jarena.data import marks
 from jarena.data.accessors import DEFAULT, Accessors
-
-if TYPE_CHECKING:
-    from jarena.data.buffer import BufferState
+from jarena.data.buffer_state import BufferState
 
 Array = jax.Array
 PyTree = Any

@@ -15,6 +15,10 @@ from typing import Any
 import numpy as np
 
 GROUPS = ("observation", "action", "goal")
+# Which row index each group's arrays use: one row per observation (T + 1 per trajectory), per step (T) or
+# per trajectory.
+ROWS_PER = {"observation": "observation", "action": "step", "goal": "trajectory", "step": "step",
+            "trajectory": "trajectory"}
 COMPRESSIONS = ("zstd", "gzip", "blosc", "lz4")
 
 
@@ -68,6 +72,10 @@ class Field:
     def to_json(self) -> dict[str, Any]:
         return {"shape": list(self.shape), "dtype": self.dtype, "output_key": self.output_key,
                 "compression": self.compression}
+
+
+# Every step's own fields beside the action.
+STEP_FIELDS = {"reward": Field((), "float32"), "terminated": Field((), "bool"), "truncated": Field((), "bool")}
 
 
 def as_field(name: str, config: Any) -> Field:

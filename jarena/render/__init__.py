@@ -4,12 +4,12 @@ Physics states are collected on device by the compiled runners; frames are drawn
 by the arena's ``Dynamics.render`` (MuJoCo's renderer for MJX arenas, numpy drawings for the classic
 ones), for selected arenas only, and written as MP4 or GIF.
 
-    from jarena.render import record_video
-    record_video(agent, arena, "episode.mp4", episode=0)          # one episode
-    record_video(agent, arena, "grid.gif", episode=[0, 1, 2, 3])  # four episodes in a 2 x 2 grid
+    jarena.record_video(agent, arena, "episode.mp4", episode=0)          # one episode (a runner)
+    jarena.record_video(agent, arena, "grid.gif", episode=[0, 1, 2, 3])  # four episodes in a 2 x 2 grid
 
 ``jarena.run(..., video=path)``, ``jarena.evaluate(..., videos=N, video_dir=...)`` and
-``jarena render AGENT ARENA --out PATH`` film episodes too.
+``jarena render AGENT ARENA --out PATH`` film episodes too. Runners sit above this package: it draws
+states and writes files, and never runs an agent.
 """
 
 from jarena.render.frames import (
@@ -21,11 +21,10 @@ from jarena.render.frames import (
     rendering_arenas,
     tile,
 )
-from jarena.render.record import Recording, check_video, record_video, write_episodes
+from jarena.render.record import check_video, write_episodes
 from jarena.render.video import FORMATS, VideoOptions, control_timestep, playback, write_video
 
 __all__ = [
-    "FORMATS", "Recording", "RenderError", "VideoOptions", "can_render", "check_video", "control_timestep", "playback",
-    "record_video", "render_batch", "render_trajectory", "renderer", "rendering_arenas", "tile", "write_episodes",
-    "write_video",
+    "FORMATS", "RenderError", "VideoOptions", "can_render", "check_video", "control_timestep", "playback",
+    "render_batch", "render_trajectory", "renderer", "rendering_arenas", "tile", "write_episodes", "write_video",
 ]

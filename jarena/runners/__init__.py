@@ -2,8 +2,9 @@
 
 from jarena.runners.evaluate import evaluate, validate
 from jarena.runners.parallel import Rollout, perform_parallel
+from jarena.runners.record import Recording, record_video
 from jarena.runners.results import EvalResult, mean_interval
 from jarena.runners.run import Trajectory, run
 
-__all__ = ["EvalResult", "Rollout", "Trajectory", "evaluate", "mean_interval", "perform_parallel", "run",
-           "validate"]
+__all__ = ["EvalResult", "Recording", "Rollout", "Trajectory", "evaluate", "mean_interval", "perform_parallel",
+           "record_video", "run", "validate"]

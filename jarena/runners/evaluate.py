@@ -38,25 +38,26 @@ def _compiled_episodes(agent: Agent, arena: Arena, num: int, max_steps: int, par
                 lambda x: jnp.zeros((max_steps + 1, filmed) + x.shape[1:], x.dtype).at[0].set(x[:filmed]),
                 state.physics)
         carry = (state, info, agent_state, jnp.zeros((num,), bool), zeros, jnp.zeros((num,), jnp.int32),
-                 jnp.zeros((), jnp.int32), film)
+                 jnp.zeros((), jnp.int32), film, jnp.zeros((num,), jnp.int32))
 
         def cond(c):
             done, t = c[3], c[6]
             return (t < max_steps) & ~jnp.all(done)
 
         def body(c):
-            state, info, agent_state, done, ret, length, t, film = c
+            state, info, agent_state, done, ret, length, t, film, fault = c
             state, info, agent_state, _, valid = frozen_step(agent, arena, state, info, agent_state,
                                                              jax.random.fold_in(key, t), params, params_axis, done)
-            ret = ret + jnp.where(valid, info.reward, 0.0)
+            ret = ret + jnp.where(valid, info.reward, 0.0)  # a faulted step's reward is 0: returns stay finite
             length = length + valid.astype(jnp.int32)
+            fault = fault | jnp.where(valid, info.fault, 0)  # the episode's faults (the step that ended it)
             if filmed:
                 film = jax.tree_util.tree_map(lambda f, x: f.at[t + 1].set(x[:filmed]), film, state.physics)
-            return state, info, agent_state, done | info.done, ret, length, t + 1, film
+            return state, info, agent_state, done | info.done, ret, length, t + 1, film, fault
 
-        state, info, agent_state, done, ret, length, _, film = jax.lax.while_loop(cond, body, carry)
+        state, info, agent_state, done, ret, length, _, film, fault = jax.lax.while_loop(cond, body, carry)
         out = {"returns": ret, "lengths": length, "successes": info.success, "metrics": info.metrics,
-               "done": done}
+               "done": done, "faults": fault}
         if filmed:
             out["physics"] = film
         return out
@@ -70,6 +71,7 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
                  ) -> tuple[EvalResult, PyTree]:
     """:func:`evaluate`, also returning the physics states of the first ``filmed`` episodes on device,
     (max_steps + 1, filmed, ...) with the reset state first, or ``None`` when ``filmed == 0``."""
+    agent.check_fits(arena)  # an AgentArenaMismatch before compiling (cached per agent and arena)
     if split not in ("eval", "val"):
         raise ValueError(f"evaluate runs the fixed 'eval' or 'val' splits, got split={split!r}")
     ids = np.asarray(list(arena.episodes(split)) if episodes is None else episodes, np.int32).reshape(-1)
@@ -91,7 +93,8 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
     result = EvalResult(arena=arena.build_string or arena.name, agent=agent.name, split=split, episodes=ids,
                         returns=np.asarray(out["returns"]), lengths=np.asarray(out["lengths"]),
                         successes=np.asarray(out["successes"]),
-                        metrics={k: np.asarray(v) for k, v in out["metrics"].items()})
+                        metrics={k: np.asarray(v) for k, v in out["metrics"].items()},
+                        faults=np.asarray(out["faults"], np.int32))
     return result, physics
 
 

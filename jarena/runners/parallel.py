@@ -10,11 +10,12 @@ import numpy as np
 from flax import struct
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from jarena.core.agent import Agent
+from jarena.core.agent import Agent, check_agent_fits
 from jarena.core.arena import Arena
 from jarena.core.batching import batch_reset
 from jarena.core.types import ArenaParams, ArenaState, Info
 from jarena.runners.loop import act_and_step
+from jarena.runners.run import check_count
 
 PyTree = Any
 
@@ -97,9 +98,16 @@ def perform_parallel(agent: Agent, arena: Arena, key: jax.Array, num_arenas: int
       agent_state: the agent's state for B arenas (default: ``agent.init``).
       start: ``(state, info)`` to continue from (e.g. a previous rollout's), instead of fresh resets.
       record: return per-step infos and actions (T, B, ...); off saves memory for long runs.
+
+    Raises:
+      ValueError: ``num_arenas`` or ``num_steps`` < 1.
+      AgentArenaMismatch: the agent does not fit the arena (checked before compiling).
     """
+    num_arenas = check_count(num_arenas, "num_arenas", "perform_parallel")
+    num_steps = check_count(num_steps, "num_steps", "perform_parallel")
+    check_agent_fits(agent, arena)
     params = arena.default_params() if params is None else params
     if agent_state is None:
         agent_state = agent.init(jax.random.fold_in(key, 0x1A1), arena.spec, num_arenas)
-    fn = _compiled(agent, arena, int(num_arenas), int(num_steps), params_axis, bool(record))
+    fn = _compiled(agent, arena, num_arenas, num_steps, params_axis, bool(record))
     return fn(key, start, agent_state, params)

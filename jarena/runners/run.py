@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import operator
 from pathlib import Path
 from typing import Any
 
@@ -10,9 +11,10 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jarena.core.agent import Agent
+from jarena.core.agent import Agent, check_agent_fits
 from jarena.core.arena import Arena
 from jarena.core.batching import batch_reset
+from jarena.core.episodes import check_episode_ids
 from jarena.core.types import ArenaParams, Info
 from jarena.runners.loop import frozen_step
 
@@ -42,6 +44,17 @@ class Trajectory:
     @property
     def episode_return(self) -> jax.Array:
         return jnp.sum(jnp.where(self.valid, self.infos.reward, 0.0))
+
+
+def check_count(value: Any, name: str, where: str) -> int:
+    """``value`` as an int if it is an integer >= 1; else a ValueError naming ``name`` and the valid range."""
+    try:
+        count = operator.index(value)
+    except TypeError:
+        count = None
+    if count is None or count < 1:
+        raise ValueError(f"{where}: {name} must be an integer >= 1, got {value!r}")
+    return count
 
 
 def _squeeze(tree, axis):
@@ -84,15 +97,22 @@ def run(agent: Agent, arena: Arena, key: jax.Array, *, episode: int | None = Non
     Args:
       agent, arena: what to run.
       key: PRNG key (episode draw and the agent's randomness).
-      episode: an episode id, e.g. ``arena.episodes("eval")[3]``.
+      episode: an episode id, e.g. ``arena.episodes("eval")[3]`` (in ``[0, 2^31)``).
       params: arena params.
       agent_state: the agent's state for a batch of one arena (default: ``agent.init``).
-      max_steps: length of the recorded trajectory (default: the arena's ``max_episode_steps``).
+      max_steps: length of the recorded trajectory, >= 1 (default: the arena's ``max_episode_steps``).
       video: write a video of the episode to this path (``.mp4`` or ``.gif``): the scan also keeps the
         physics states on device and the frames are rendered on the host afterwards. The arena must
         render (``jarena.render.can_render``); the trajectory is the same as without.
       video_options: a :class:`jarena.render.VideoOptions` (frame size, camera, fps).
+
+    Raises:
+      ValueError: ``max_steps`` < 1 or an episode id out of range.
+      AgentArenaMismatch: the agent does not fit the arena (checked before compiling).
     """
+    check_episode_ids(episode, "run: episode")
+    if max_steps is not None:
+        check_count(max_steps, "max_steps", "run")
     if video is not None:
         from jarena.render.record import check_video
 
@@ -100,6 +120,7 @@ def run(agent: Agent, arena: Arena, key: jax.Array, *, episode: int | None = Non
     max_steps = max_steps or arena.max_episode_steps
     if max_steps is None:
         raise ValueError(f"arena {arena.name!r} has no time limit; pass max_steps to run")
+    check_agent_fits(agent, arena)
     params = arena.default_params() if params is None else params
     if agent_state is None:
         agent_state = agent.init(jax.random.fold_in(key, 0x1A1), arena.spec, 1)

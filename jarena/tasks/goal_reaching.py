@@ -65,4 +65,4 @@ def goal_reaching(position: Callable[[Any], jax.Array], low, high, threshold: fl
 
     return Task(update=update, reset=reset,
                 default_params=lambda: GoalReachingParams(low, high, jnp.asarray(threshold, jnp.float32)),
-                name="goal_reaching")
+                name="goal_reaching", has_success=True)

@@ -10,8 +10,8 @@ Each ``check_*`` function raises ``AssertionError`` naming the property that fai
 - ``check_vmap``: ``jit(vmap(...))`` over keys and over params keeps the tree structure with a batch axis;
 - ``check_determinism``: the same key gives a bit-identical trajectory, different keys different
   initial states, and an episode id gives the same episode whatever the key;
-- ``check_rollout``: over an episode of random actions every value is finite, every observation is in
-  the observation spec, every sampled action in the action spec, and reset and step infos share one
+- ``check_rollout``: over an episode of random actions every value is finite, no step faults (see
+  :mod:`jarena.core.faults`), every observation is in the observation spec, every sampled action in the action spec, and reset and step infos share one
   structure.
 """
 
@@ -24,6 +24,7 @@ import numpy as np
 
 from jarena.core.arena import Arena
 from jarena.core.batching import auto_reset
+from jarena.core.faults import describe
 
 DEFAULT_STEPS = 200
 
@@ -148,6 +149,11 @@ def check_rollout(arena: Arena, key: jax.Array, steps: int | None = None) -> Non
     steps = steps or min(arena.max_episode_steps or DEFAULT_STEPS, DEFAULT_STEPS * 2)
     initial, infos, actions = _trajectory(arena, steps)(key)
     chex.assert_trees_all_equal_structs(initial.replace(final=None), infos.replace(final=None))
+    # Arena.step zeroes a faulted step's non-finite observation and reward, so a blow-up shows in its fault
+    fault = np.asarray(infos.fault)
+    if np.any(fault != 0):
+        t = int(np.argmax(fault != 0))
+        raise AssertionError(f"{arena.name}: step {t} of random valid actions faulted: {describe(fault[t])}")
     for leaf in jax.tree_util.tree_leaves((initial, infos)):
         if jnp.issubdtype(leaf.dtype, jnp.floating) and not np.all(np.isfinite(np.asarray(leaf))):
             raise AssertionError(f"{arena.name}: non-finite values in info over {steps} steps")

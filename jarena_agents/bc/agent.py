@@ -57,7 +57,7 @@ from jarena.data.loader import draw_indices
 from jarena.data.schema import DatasetError
 from jarena_agents import networks, normalizer
 from jarena_agents.bc import losses
-from jarena_agents.config import ConfigError, make_config
+from jarena_agents.config import ConfigError, at_least, in_unit_interval, make_config, non_negative, positive
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
 
@@ -86,15 +86,15 @@ class BCConfig:
 
     dataset: str = ""
     policy: str = "deterministic"
-    chunk: int = 1
+    chunk: int = at_least(1, default=1)
     hidden: tuple = (256, 256)
-    batch_size: int = 256
-    learning_rate: float = 1e-3
+    batch_size: int = at_least(1, default=256)
+    learning_rate: float = positive(1e-3)
     anneal_lr: bool = True
-    max_grad_norm: float = 1.0
-    total_steps: int = 10_000
+    max_grad_norm: float = non_negative(1.0)
+    total_steps: int = at_least(1, default=10_000)
     normalize_observations: bool = True
-    nll_beta: float = 0.5
+    nll_beta: float = in_unit_interval(0.5)
 
     @property
     def steps_per_update(self) -> int:
@@ -294,9 +294,6 @@ def make_bc(config=None) -> TrainableAgent:
     cfg = make_config(BCConfig, config, agent="bc")
     if cfg.policy not in POLICIES:
         raise ConfigError(f"bc: unknown policy {cfg.policy!r}; valid policies: {list(POLICIES)}")
-    for name in ("chunk", "batch_size", "total_steps"):
-        if getattr(cfg, name) < 1:
-            raise ConfigError(f"bc: config key {name!r} must be at least 1, got {getattr(cfg, name)}")
 
     def network(spec: ArenaSpec):
         head = head_for(cfg.policy, spec.action)

@@ -13,7 +13,7 @@ import jax.numpy as jnp
 
 from jarena.core.agent import Agent
 from jarena_agents.basic import SpecState
-from jarena_agents.config import make_config
+from jarena_agents.config import make_config, unbounded
 from jarena_agents.registry import register_agent
 
 
@@ -21,10 +21,10 @@ from jarena_agents.registry import register_agent
 class CartPoleOracleConfig:
     """Feedback gains on cart position, cart velocity, pole angle and pole angular velocity."""
 
-    k_x: float = 0.1
-    k_x_dot: float = 0.3
-    k_theta: float = 2.0
-    k_theta_dot: float = 0.5
+    k_x: float = unbounded(0.1)
+    k_x_dot: float = unbounded(0.3)
+    k_theta: float = unbounded(2.0)
+    k_theta_dot: float = unbounded(0.5)
 
 
 def make_cartpole_oracle(config=None) -> Agent:
@@ -38,7 +38,8 @@ def make_cartpole_oracle(config=None) -> Agent:
         u = cfg.k_x * p.x + cfg.k_x_dot * p.x_dot + cfg.k_theta * p.theta + cfg.k_theta_dot * p.theta_dot
         return (u > 0).astype(jnp.int32), state
 
-    return Agent(name="oracle_cartpole", init=init, act=act, privileged=True, config=dataclasses.asdict(cfg))
+    return Agent(name="oracle_cartpole", init=init, act=act, privileged=True, made_for=("cartpole",),
+                 config=dataclasses.asdict(cfg))
 
 
 register_agent("oracle_cartpole", make_cartpole_oracle, tags=("oracle",))

@@ -18,6 +18,7 @@ For ``dmc|domain:cartpole`` (tasks ``swingup`` and ``balance``, MJX physics). Th
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import TYPE_CHECKING
 
 import jax
@@ -26,7 +27,7 @@ import numpy as np
 
 from jarena.core.agent import Agent
 from jarena_agents.basic import SpecState
-from jarena_agents.config import make_config
+from jarena_agents.config import Range, make_config, non_negative, positive, ranged, unbounded
 from jarena_agents.oracles import lqr
 from jarena_agents.registry import register_agent
 
@@ -39,15 +40,15 @@ class DmcCartpoleOracleConfig:
     """Swing-up gains (control per J rad/s; per m; per m/s), the capture angle (rad) and the LQR's
     diagonal state costs on (x, theta, x_dot, theta_dot) and control cost, per control step."""
 
-    energy_gain: float = 15.0
-    k_x: float = 1.5
-    k_x_dot: float = 1.5
-    capture_angle: float = 0.6
-    q_x: float = 1.0
-    q_theta: float = 10.0
-    q_x_dot: float = 0.1
-    q_theta_dot: float = 0.1
-    r: float = 1.0
+    energy_gain: float = unbounded(15.0)
+    k_x: float = unbounded(1.5)
+    k_x_dot: float = unbounded(1.5)
+    capture_angle: float = ranged(0.6, Range(0, math.pi))
+    q_x: float = non_negative(1.0)
+    q_theta: float = non_negative(10.0)
+    q_x_dot: float = non_negative(0.1)
+    q_theta_dot: float = non_negative(0.1)
+    r: float = positive(1.0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,7 +129,8 @@ def make_dmc_cartpole_oracle(config=None) -> Agent:
         return jax.vmap(lambda qpos, qvel: control(pole, jnp.asarray(gain), cfg, qpos, qvel))(
             data.qpos, data.qvel), state
 
-    return Agent(name="oracle_dmc_cartpole", init=init, act=act, privileged=True, config=dataclasses.asdict(cfg))
+    return Agent(name="oracle_dmc_cartpole", init=init, act=act, privileged=True, made_for=("dmc-cartpole",),
+                 config=dataclasses.asdict(cfg))
 
 
 register_agent("oracle_dmc_cartpole", make_dmc_cartpole_oracle, tags=("oracle",))

@@ -20,7 +20,7 @@ import numpy as np
 
 from jarena.core.agent import Agent
 from jarena_agents.basic import SpecState
-from jarena_agents.config import make_config
+from jarena_agents.config import make_config, unbounded
 from jarena_agents.registry import register_agent
 
 if TYPE_CHECKING:  # imported when an agent is built, to keep importing jarena_agents light
@@ -31,8 +31,8 @@ if TYPE_CHECKING:  # imported when an agent is built, to keep importing jarena_a
 class DmcPointMassOracleConfig:
     """Stiffness (N/m) on the position error and damping (N s/m) on the mass's velocity."""
 
-    k_p: float = 5.0
-    k_d: float = 0.3
+    k_p: float = unbounded(5.0)
+    k_d: float = unbounded(0.3)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,7 +102,7 @@ def make_dmc_point_mass_oracle(config=None) -> Agent:
         return jax.vmap(lambda xpos, qvel: control(actuation, jnp.asarray(g_p), jnp.asarray(g_d), xpos, qvel))(
             data.geom_xpos, data.qvel), state
 
-    return Agent(name="oracle_dmc_point_mass", init=init, act=act, privileged=True,
+    return Agent(name="oracle_dmc_point_mass", init=init, act=act, privileged=True, made_for=("dmc-point_mass",),
                  config=dataclasses.asdict(cfg))
 
 

@@ -27,7 +27,7 @@ import numpy as np
 
 from jarena.core.agent import Agent
 from jarena_agents.basic import SpecState
-from jarena_agents.config import make_config
+from jarena_agents.config import make_config, non_negative, positive
 from jarena_agents.registry import register_agent
 
 if TYPE_CHECKING:  # imported when an agent is built, to keep importing jarena_agents light
@@ -38,8 +38,8 @@ if TYPE_CHECKING:  # imported when an agent is built, to keep importing jarena_a
 class DmcReacherOracleConfig:
     """Closed-loop natural frequency (rad/s) and damping ratio of each joint's PD control."""
 
-    natural_frequency: float = 30.0
-    damping_ratio: float = 1.0
+    natural_frequency: float = positive(30.0)
+    damping_ratio: float = non_negative(1.0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,7 +141,8 @@ def make_dmc_reacher_oracle(config=None) -> Agent:
             arm, cfg, qpos, qvel, xpos[arm.shoulder_body, :2], mocap[arm.target_mocap, :2]))(
             data.qpos, data.qvel, data.xpos, data.mocap_pos), state
 
-    return Agent(name="oracle_dmc_reacher", init=init, act=act, privileged=True, config=dataclasses.asdict(cfg))
+    return Agent(name="oracle_dmc_reacher", init=init, act=act, privileged=True, made_for=("dmc-reacher",),
+                 config=dataclasses.asdict(cfg))
 
 
 register_agent("oracle_dmc_reacher", make_dmc_reacher_oracle, tags=("oracle",))

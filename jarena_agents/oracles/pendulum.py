@@ -11,22 +11,23 @@ clipped to the action spec.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import jax.numpy as jnp
 
 from jarena.core.agent import Agent
 from jarena_agents.basic import SpecState
-from jarena_agents.config import make_config
+from jarena_agents.config import Range, make_config, ranged, unbounded
 from jarena_agents.registry import register_agent
 
 
 @dataclasses.dataclass(frozen=True)
 class PendulumOracleConfig:
-    energy_gain: float = 2.0
-    k_p: float = 12.0
-    k_d: float = 2.5
-    capture_angle: float = 0.6  # rad: switch to stabilisation within this angle of upright
-    kick: float = 1.0  # torque applied when at rest away from upright
+    energy_gain: float = unbounded(2.0)
+    k_p: float = unbounded(12.0)
+    k_d: float = unbounded(2.5)
+    capture_angle: float = ranged(0.6, Range(0, math.pi))  # rad: switch to stabilisation within this angle of upright
+    kick: float = unbounded(1.0)  # torque applied when at rest away from upright
 
 
 def _angle_normalize(x):
@@ -56,7 +57,8 @@ def make_pendulum_oracle(config=None) -> Agent:
         high = jnp.asarray(state.spec.action.high, jnp.float32)
         return jnp.clip(torque[..., None], low, high), state
 
-    return Agent(name="oracle_pendulum", init=init, act=act, privileged=True, config=dataclasses.asdict(cfg))
+    return Agent(name="oracle_pendulum", init=init, act=act, privileged=True, made_for=("pendulum",),
+                 config=dataclasses.asdict(cfg))
 
 
 register_agent("oracle_pendulum", make_pendulum_oracle, tags=("oracle",))

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 
 from jarena.core.agent import Agent
 from jarena_agents.basic import SpecState
-from jarena_agents.config import make_config
+from jarena_agents.config import make_config, unbounded
 from jarena_agents.registry import register_agent
 
 
@@ -22,8 +22,8 @@ from jarena_agents.registry import register_agent
 class PointMassOracleConfig:
     """Proportional gain (N/m) on the position error and derivative gain (N s/m) on the velocity."""
 
-    k_p: float = 9.0
-    k_d: float = 5.0
+    k_p: float = unbounded(9.0)
+    k_d: float = unbounded(5.0)
 
 
 def make_point_mass_oracle(config=None) -> Agent:
@@ -40,7 +40,8 @@ def make_point_mass_oracle(config=None) -> Agent:
         high = jnp.asarray(state.spec.action.high, jnp.float32)
         return jnp.clip(force, low, high), state
 
-    return Agent(name="oracle_point_mass", init=init, act=act, privileged=True, config=dataclasses.asdict(cfg))
+    return Agent(name="oracle_point_mass", init=init, act=act, privileged=True, made_for=("point_mass",),
+                 config=dataclasses.asdict(cfg))
 
 
 register_agent("oracle_point_mass", make_point_mass_oracle, tags=("oracle",))

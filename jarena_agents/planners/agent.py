@@ -19,7 +19,7 @@ from flax import struct
 
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
-from jarena_agents.config import ConfigError, make_config
+from jarena_agents.config import ConfigError, at_least, make_config, non_negative
 from jarena_agents.planners.model import Model, arena_model
 from jarena_agents.planners.sampling import WARM_STARTS, initial_plan, shift_plan, warm_start_fill
 
@@ -43,20 +43,15 @@ class PlannerConfig:
     """
 
     arena: str = ""
-    samples: int = 256
-    horizon: int = 30
-    iterations: int = 1
-    noise: float = 0.5
+    samples: int = at_least(1, default=256)
+    horizon: int = at_least(1, default=30)
+    iterations: int = at_least(1, default=1)
+    noise: float = non_negative(0.5)
     warm_start: str = "last"
 
 
 def check_config(cfg: PlannerConfig, agent: str) -> None:
-    """Raises ``ConfigError`` for settings out of range."""
-    for key in ("samples", "horizon", "iterations"):
-        if getattr(cfg, key) < 1:
-            raise ConfigError(f"config key {key!r} of agent {agent!r} must be >= 1, got {getattr(cfg, key)}")
-    if cfg.noise < 0:
-        raise ConfigError(f"config key 'noise' of agent {agent!r} must be >= 0, got {cfg.noise}")
+    """Raises ``ConfigError`` for settings out of range (numeric ranges: the fields', checked by make_config)."""
     if cfg.warm_start not in WARM_STARTS:
         raise ConfigError(f"config key 'warm_start' of agent {agent!r} must be one of {list(WARM_STARTS)}, "
                           f"got {cfg.warm_start!r}")

@@ -14,7 +14,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 
-from jarena_agents.config import ConfigError
+from jarena_agents.config import at_least, in_unit_interval, non_negative
 from jarena_agents.planners.agent import PlannerConfig, make_planner
 from jarena_agents.planners.model import Model
 from jarena_agents.planners.sampling import action_bounds, half_range, rollout_returns, sample_plans
@@ -25,20 +25,10 @@ from jarena_agents.registry import register_agent
 class CEMConfig(PlannerConfig):
     """:class:`PlannerConfig` plus ``elite_fraction`` (0, 1], ``min_noise`` >= 0, ``smoothing`` in [0, 1)."""
 
-    iterations: int = 4
-    elite_fraction: float = 0.1
-    min_noise: float = 0.05
-    smoothing: float = 0.0
-
-
-def _check(cfg: CEMConfig, agent: str) -> None:
-    if not 0 < cfg.elite_fraction <= 1:
-        raise ConfigError(f"config key 'elite_fraction' of agent {agent!r} must be in (0, 1], "
-                          f"got {cfg.elite_fraction}")
-    if cfg.min_noise < 0:
-        raise ConfigError(f"config key 'min_noise' of agent {agent!r} must be >= 0, got {cfg.min_noise}")
-    if not 0 <= cfg.smoothing < 1:
-        raise ConfigError(f"config key 'smoothing' of agent {agent!r} must be in [0, 1), got {cfg.smoothing}")
+    iterations: int = at_least(1, default=4)
+    elite_fraction: float = in_unit_interval(0.1, open_low=True)
+    min_noise: float = non_negative(0.05)
+    smoothing: float = in_unit_interval(0.0, open_high=True)
 
 
 def num_elites(cfg: CEMConfig) -> int:
@@ -71,7 +61,7 @@ def cem_improve(model: Model, cfg: CEMConfig):
 
 def make_cem(config=None, arena=None, model=None):
     """The CEM planner; see :mod:`jarena_agents.planners` for how it gets its arena."""
-    return make_planner("cem", CEMConfig, cem_improve, config, arena, model, _check)
+    return make_planner("cem", CEMConfig, cem_improve, config, arena, model)
 
 
 register_agent("cem", make_cem, tags=("planner",))

@@ -14,7 +14,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 
-from jarena_agents.config import ConfigError
+from jarena_agents.config import positive
 from jarena_agents.planners.agent import PlannerConfig, make_planner
 from jarena_agents.planners.model import Model
 from jarena_agents.planners.sampling import action_bounds, half_range, rollout_returns, sample_plans
@@ -25,12 +25,7 @@ from jarena_agents.registry import register_agent
 class MPPIConfig(PlannerConfig):
     """:class:`PlannerConfig` plus ``temperature`` (lambda > 0, reward units)."""
 
-    temperature: float = 1.0
-
-
-def _check(cfg: MPPIConfig, agent: str) -> None:
-    if not cfg.temperature > 0:
-        raise ConfigError(f"config key 'temperature' of agent {agent!r} must be > 0, got {cfg.temperature}")
+    temperature: float = positive(1.0)
 
 
 def mppi_improve(model: Model, cfg: MPPIConfig):
@@ -53,7 +48,7 @@ def mppi_improve(model: Model, cfg: MPPIConfig):
 
 def make_mppi(config=None, arena=None, model=None):
     """The MPPI planner; see :mod:`jarena_agents.planners` for how it gets its arena."""
-    return make_planner("mppi", MPPIConfig, mppi_improve, config, arena, model, _check)
+    return make_planner("mppi", MPPIConfig, mppi_improve, config, arena, model)
 
 
 register_agent("mppi", make_mppi, tags=("planner",))

@@ -25,7 +25,7 @@ from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.batching import batch_reset, batch_step
 from jarena.core.types import ArenaState, Info
 from jarena_agents import networks, normalizer
-from jarena_agents.config import make_config
+from jarena_agents.config import at_least, in_unit_interval, make_config, non_negative, positive
 from jarena_agents.ppo.losses import compute_gae, ppo_loss
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
@@ -37,29 +37,29 @@ PyTree = Any
 class PPOConfig:
     """PPO hyperparameters (defaults: PureJaxRL's CartPole settings)."""
 
-    num_arenas: int = 4
-    rollout_length: int = 128
-    epochs: int = 4
-    minibatches: int = 4
-    learning_rate: float = 2.5e-4
+    num_arenas: int = at_least(1, default=4)
+    rollout_length: int = at_least(1, default=128)
+    epochs: int = at_least(1, default=4)
+    minibatches: int = at_least(1, default=4)
+    learning_rate: float = positive(2.5e-4)
     anneal_lr: bool = True
-    total_steps: int = 500_000
-    discount: float = 0.99
-    gae_lambda: float = 0.95
-    clip_epsilon: float = 0.2
-    entropy_coef: float = 0.01
-    value_coef: float = 0.5
-    max_grad_norm: float | None = 0.5  # None: no clipping (Brax's default)
+    total_steps: int = at_least(1, default=500_000)
+    discount: float = in_unit_interval(0.99, open_low=True)
+    gae_lambda: float = in_unit_interval(0.95)
+    clip_epsilon: float = positive(0.2)
+    entropy_coef: float = non_negative(0.01)
+    value_coef: float = non_negative(0.5)
+    max_grad_norm: float | None = positive(0.5)  # None: no clipping (Brax's default)
     hidden: tuple = (64, 64)
     value_hidden: tuple | None = None  # the value MLP's layers (default: ``hidden``)
     box_policy: str = "gaussian"  # or "tanh_normal" (Brax's): see networks.ActorCritic
     activation: str = "tanh"  # hidden layers: tanh, relu or swish (Brax's)
     normalize_observations: bool = False
-    reward_scale: float = 1.0
+    reward_scale: float = positive(1.0)
     # None: GAE over the whole rollout with the acting parameters, then transitions are shuffled
     # (PureJaxRL). An int U: the rollout is cut into U-step segments, segments are shuffled, and each
     # minibatch recomputes GAE over its segments with the current value network (Brax's PPO).
-    unroll_length: int | None = None
+    unroll_length: int | None = at_least(1, default=None)
 
     @property
     def steps_per_update(self) -> int:
@@ -173,7 +173,7 @@ def make_ppo(config=None) -> Agent:
             record = dict(observation=observation, raw_action=raw, log_prob=logp, value=value,
                           reward=next_info.reward * cfg.reward_scale, terminated=next_info.terminated,
                           done=finished, final_observation=final_observation,
-                          finished_return=jnp.where(finished, episode_return, 0.0))
+                          finished_return=jnp.where(finished, episode_return, 0.0), faulted=next_info.faulted)
             episode_return = jnp.where(finished, 0.0, episode_return)
             return (arena_state, next_info, episode_return), record
 
@@ -240,6 +240,7 @@ def make_ppo(config=None) -> Agent:
         finished = jnp.sum(batch["done"])
         metrics = dict(episodes=finished,
                        episode_return=jnp.sum(batch["finished_return"]) / jnp.maximum(finished, 1),
+                       faulted_episodes=jnp.sum(batch["faulted"]),  # a fault ends its episode
                        **{k: jnp.mean(v) for k, v in dataclasses.asdict(terms).items()})
         ts = PPOTrainState(params=params, opt_state=opt_state, observation_stats=stats, arena_state=arena_state,
                            info=info, episode_return=episode_return, key=key, update=ts.update + 1,

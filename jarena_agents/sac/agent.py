@@ -37,7 +37,7 @@ from jarena.core.spec import Box, Spec
 from jarena.core.types import ArenaState, Info
 from jarena.data import BufferState, make_buffer
 from jarena_agents import networks
-from jarena_agents.config import make_config
+from jarena_agents.config import at_least, in_unit_interval, make_config, non_negative, positive, unbounded
 from jarena_agents.registry import register_agent
 from jarena_agents.sac import losses
 from jarena_agents.trainable import TrainableAgent
@@ -69,25 +69,25 @@ class SACConfig:
       reward_scale: rewards are multiplied by this in the critic's target.
     """
 
-    num_arenas: int = 1
-    rollout_length: int = 1
-    utd: float = 1.0
-    batch_size: int = 256
-    buffer_size: int = 1_000_000
-    learning_starts: int = 5_000
-    total_steps: int = 1_000_000
-    discount: float = 0.99
-    tau: float = 0.005
-    actor_lr: float = 3e-4
-    critic_lr: float = 3e-4
-    alpha_lr: float = 3e-4
-    initial_alpha: float = 1.0
+    num_arenas: int = at_least(1, default=1)
+    rollout_length: int = at_least(1, default=1)
+    utd: float = positive(1.0)
+    batch_size: int = at_least(1, default=256)
+    buffer_size: int = at_least(1, default=1_000_000)
+    learning_starts: int = non_negative(5_000)
+    total_steps: int = at_least(1, default=1_000_000)
+    discount: float = in_unit_interval(0.99, open_low=True)
+    tau: float = in_unit_interval(0.005, open_low=True)
+    actor_lr: float = positive(3e-4)
+    critic_lr: float = positive(3e-4)
+    alpha_lr: float = positive(3e-4)
+    initial_alpha: float = positive(1.0)
     autotune_alpha: bool = True
-    target_entropy: float | None = None
+    target_entropy: float | None = unbounded(None)
     hidden: tuple = (256, 256)
-    log_std_min: float = -5.0
-    log_std_max: float = 2.0
-    reward_scale: float = 1.0
+    log_std_min: float = unbounded(-5.0)
+    log_std_max: float = unbounded(2.0)
+    reward_scale: float = positive(1.0)
 
     @property
     def steps_per_update(self) -> int:
@@ -107,21 +107,12 @@ def _check_config(cfg: SACConfig) -> None:
     def fail(message):
         raise ValueError(f"sac: {message}")
 
-    for name in ("num_arenas", "rollout_length", "batch_size", "buffer_size"):
-        if getattr(cfg, name) < 1:
-            fail(f"{name} must be a positive int, got {getattr(cfg, name)}")
-    grad = cfg.utd * cfg.steps_per_update
+    grad = cfg.utd * cfg.steps_per_update  # ranges of single keys: SACConfig's fields, checked by make_config
     if cfg.utd <= 0 or abs(grad - round(grad)) > 1e-9:
         fail(f"utd * num_arenas * rollout_length (gradient steps per update) must be a positive integer, got "
              f"{cfg.utd} * {cfg.num_arenas} * {cfg.rollout_length} = {grad}")
     if cfg.buffer_size % cfg.num_arenas:
         fail(f"buffer_size={cfg.buffer_size} must be a multiple of num_arenas={cfg.num_arenas}")
-    if cfg.learning_starts < 0:
-        fail(f"learning_starts must be >= 0, got {cfg.learning_starts}")
-    if not 0.0 < cfg.tau <= 1.0:
-        fail(f"tau must be in (0, 1], got {cfg.tau}")
-    if cfg.initial_alpha <= 0:
-        fail(f"initial_alpha must be > 0, got {cfg.initial_alpha}")
     if cfg.target_entropy is not None and not isinstance(cfg.target_entropy, int | float):
         fail(f"target_entropy must be a number or null (for -|A|), got {cfg.target_entropy!r}")
     if not cfg.log_std_min < cfg.log_std_max:
@@ -363,7 +354,8 @@ def make_sac(config=None) -> TrainableAgent:
                 step=info.step))
             episode_return = episode_return + next_info.reward
             finished = next_info.done
-            record = dict(done=finished, finished_return=jnp.where(finished, episode_return, 0.0))
+            record = dict(done=finished, finished_return=jnp.where(finished, episode_return, 0.0),
+                          faulted=next_info.faulted)
             episode_return = jnp.where(finished, 0.0, episode_return)
             return (arena_state, next_info, episode_return, buffer_state), record
 
@@ -389,7 +381,8 @@ def make_sac(config=None) -> TrainableAgent:
         learner, metrics = jax.lax.cond(env_steps >= cfg.learning_starts, learn, wait, learner)
         finished = jnp.sum(record["done"])
         metrics = dict(episodes=finished,
-                       episode_return=jnp.sum(record["finished_return"]) / jnp.maximum(finished, 1), **metrics)
+                       episode_return=jnp.sum(record["finished_return"]) / jnp.maximum(finished, 1),
+                       faulted_episodes=jnp.sum(record["faulted"]), **metrics)  # a fault ends its episode
         ts = SACTrainState(**{f.name: getattr(learner, f.name) for f in dataclasses.fields(_Learner)},
                            buffer=buffer_state, arena_state=arena_state, info=info, episode_return=episode_return,
                            key=key, update=ts.update + 1, env_steps=env_steps)

@@ -11,7 +11,8 @@ import pytest
 import jarena
 import jarena.render.frames
 import jarena_agents
-from jarena.render import RenderError, VideoOptions, record_video, render_batch
+from jarena.render import RenderError, VideoOptions, render_batch
+from jarena.runners import record_video
 
 
 def read(path):
@@ -135,7 +136,7 @@ def test_train_and_evaluate_films_eval_episodes(tmp_path, monkeypatch):
         assert read(path).shape == (result.evaluation.lengths[i] + 1, 240, 320, 3)
     # an arena without renderer: no videos and no error (the same arena, seen as one that cannot render,
     # reuses the compiled training)
-    monkeypatch.setattr(jarena.render.frames, "can_render", lambda arena: False)
+    monkeypatch.setattr(jarena.training, "can_render", lambda arena: False)
     again = jarena.train_and_evaluate(agent, arena, jax.random.key(0), validate_every=0, progress=False,
                                       run_dir=tmp_path / "blind")
     np.testing.assert_array_equal(again.evaluation.returns, result.evaluation.returns)  # filming changes nothing

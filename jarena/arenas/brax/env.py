@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from jarena.core import faults
 from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Box
 from jarena.core.task import Task
@@ -141,7 +142,15 @@ def brax_dynamics(env, name: str = "brax") -> Dynamics:
 
     size = int(env.action_size)
     return Dynamics(init=init, step=step, control_spec=Box(-np.ones(size), np.ones(size), dtype=jnp.float32),
-                    default_params=lambda: as_float32(BraxParams()), timestep=float(env.dt), name=name)
+                    default_params=lambda: as_float32(BraxParams()), timestep=float(env.dt), name=name,
+                    finite=is_finite)
+
+
+def is_finite(physics) -> jax.Array:
+    """bool: the pipeline state's generalized coordinates ``q`` and velocities ``qd`` are finite (every
+    backend's state has them, and a NaN anywhere in a step reaches them; the arena checks the observation
+    and reward itself), rather than a reduction over every array of Brax's state."""
+    return faults.all_finite((physics.pipeline_state.q, physics.pipeline_state.qd))
 
 
 def check_action_range(name: str, env) -> None:

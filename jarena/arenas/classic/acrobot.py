@@ -126,7 +126,8 @@ def swingup() -> Task:
         return outcome.replace(reward=outcome.reward + jnp.where(done, 0.0, -1.0),
                                terminated=outcome.terminated | done, success=done), state
 
-    return Task(update=update, reset=reset, default_params=lambda: as_float32(SwingupParams()), name="swingup")
+    return Task(update=update, reset=reset, default_params=lambda: as_float32(SwingupParams()), name="swingup",
+                has_success=True)
 
 
 def dynamics() -> Dynamics:

@@ -93,7 +93,8 @@ def balance() -> Task:
         return outcome.replace(reward=outcome.reward + 1.0, terminated=outcome.terminated | terminated,
                                success=~terminated), state
 
-    return Task(update=update, reset=reset, default_params=lambda: as_float32(BalanceParams()), name="balance")
+    return Task(update=update, reset=reset, default_params=lambda: as_float32(BalanceParams()), name="balance",
+                has_success=True)
 
 
 def dynamics() -> Dynamics:

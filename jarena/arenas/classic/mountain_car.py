@@ -91,7 +91,8 @@ def continuous() -> Task:
         return outcome.replace(reward=outcome.reward + reward, terminated=outcome.terminated | done,
                                success=done), state
 
-    return Task(update=update, reset=reset, default_params=lambda: as_float32(ContinuousParams()), name="continuous")
+    return Task(update=update, reset=reset, default_params=lambda: as_float32(ContinuousParams()),
+                name="continuous", has_success=True)
 
 
 def dynamics() -> Dynamics:

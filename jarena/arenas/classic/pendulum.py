@@ -100,7 +100,8 @@ def swingup() -> Task:
         return outcome.replace(reward=outcome.reward - costs, success=succeeded(physics, params),
                                metrics=dict(outcome.metrics, upright=jnp.cos(physics.theta))), state
 
-    return Task(update=update, reset=reset, default_params=lambda: as_float32(SwingupParams()), name="swingup")
+    return Task(update=update, reset=reset, default_params=lambda: as_float32(SwingupParams()), name="swingup",
+                has_success=True)
 
 
 def dynamics() -> Dynamics:

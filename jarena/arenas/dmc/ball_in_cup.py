@@ -76,7 +76,7 @@ def catch() -> Task:
         hit = in_target(transition.physics)
         return outcome.replace(reward=outcome.reward + hit.astype(jnp.float32), success=hit), state
 
-    return Task(update=update, reset=reset, initialize=initialize, name="catch")
+    return Task(update=update, reset=reset, initialize=initialize, name="catch", has_success=True)
 
 
 DOMAIN = Domain(name="ball_in_cup", dynamics=dynamics, sensor=sensor, tasks={"catch": catch},

@@ -322,5 +322,5 @@ def suite_task(name: str, reward: Callable, initialize: Callable | None = None,
         outcome = outcome.replace(reward=outcome.reward + reward(data))
         return (outcome if success is None else outcome.replace(success=success(data))), state
 
-    return Task(update=update, reset=reset, name=name,
+    return Task(update=update, reset=reset, name=name, has_success=success is not None,
                 **({} if initialize is None else {"initialize": initialize}))

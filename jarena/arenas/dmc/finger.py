@@ -169,7 +169,7 @@ def _finger(task: str) -> Task:
         hit = success(transition.physics)
         return outcome.replace(reward=outcome.reward + hit.astype(jnp.float32), success=hit), state
 
-    return Task(update=update, reset=reset, initialize=initialize, name=task)
+    return Task(update=update, reset=reset, initialize=initialize, name=task, has_success=True)
 
 
 def spin() -> Task:

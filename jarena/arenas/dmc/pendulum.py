@@ -64,7 +64,7 @@ def swingup() -> Task:
         reward = upright(transition.physics)
         return outcome.replace(reward=outcome.reward + reward, success=reward > 0), state
 
-    return Task(update=update, reset=reset, initialize=initialize, name="swingup")
+    return Task(update=update, reset=reset, initialize=initialize, name="swingup", has_success=True)
 
 
 DOMAIN = Domain(name="pendulum", dynamics=dynamics, sensor=sensor, tasks={"swingup": swingup},

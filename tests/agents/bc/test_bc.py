@@ -167,6 +167,6 @@ def test_clear_errors(pendulum, tmp_path):
     with pytest.raises(jarena_agents.ConfigError, match="policy 'gaussian' does not support Discrete actions"):
         gaussian = jarena_agents.build_agent("bc", {"policy": "gaussian"})
         gaussian.init(jax.random.key(0), jarena.build_arena(CARTPOLE).spec, 1)
-    with pytest.raises(jarena_agents.ConfigError, match="'chunk' must be at least 1"):
+    with pytest.raises(jarena_agents.ConfigError, match="'chunk' of agent 'bc' must be >= 1"):
         jarena_agents.build_agent("bc", {"chunk": 0})
     assert "bc" in jarena_agents.list_agents("imitation")

@@ -1,0 +1,150 @@
+"""train_and_evaluate: which policy is evaluated, how often it validates, resuming, and results that no
+video failure can lose. A scripted "trainer" whose policy balances the pole only after chosen chunks makes
+the selection exact and fast (no learning involved)."""
+
+import dataclasses
+import json
+
+import jax
+import jax.numpy as jnp
+import pytest
+from flax import struct
+
+import jarena
+import jarena_agents
+from jarena.cli import main
+from jarena.core.agent import Agent
+from jarena.training import train_and_evaluate, training_schedule
+from jarena_agents.trainable import TrainableAgent
+
+CARTPOLE = "classic|domain:cartpole"
+STEPS_PER_UPDATE = 100
+
+
+@struct.dataclass
+class Switch:
+    good: jax.Array  # bool: balance the pole (500 per episode) or push left (falls in about 10 steps)
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    total_steps: int = 20 * STEPS_PER_UPDATE
+    steps_per_update: int = STEPS_PER_UPDATE
+
+
+def scripted_trainer(good_after_chunks: tuple[int, ...]) -> TrainableAgent:
+    """One update per chunk; the policy after chunk k (1-based) balances iff k is in ``good_after_chunks``."""
+    good = jnp.asarray(good_after_chunks, jnp.int32)
+
+    def act(state, info, key, privileged):
+        x, x_dot, theta, theta_dot = jnp.moveaxis(info.observation["state"], -1, 0)
+        balance = 0.1 * x + 0.3 * x_dot + 2.0 * theta + 0.5 * theta_dot > 0
+        return jnp.where(state.good, balance, False).astype(jnp.int32), state
+
+    def train(updates, arena, n):
+        return updates + n, {"episodes": jnp.ones((n,)), "episode_return": jnp.zeros((n,))}
+
+    agent = Agent(name="scripted", init=lambda key, spec, n: Switch(jnp.asarray(False)), act=act)
+    return TrainableAgent.wrap(agent, init_training=lambda key, arena: jnp.zeros((), jnp.int32), train=train,
+                               policy=lambda updates, spec, deterministic=True: Switch(jnp.any(updates == good)),
+                               settings=Settings())
+
+
+@pytest.fixture(scope="module")
+def cartpole():
+    return jarena.build_arena(CARTPOLE)
+
+
+def test_the_best_validated_policy_is_evaluated_ties_to_the_latest(cartpole, tmp_path):
+    agent = scripted_trainer((4, 6))  # validated after chunks 2, 4, ..., 20: 4 and 6 tie at 500
+    result = train_and_evaluate(agent, cartpole, jax.random.key(0), progress=False, run_dir=tmp_path, eval_videos=0)
+    assert [v["update"] for v in result.validations] == list(range(2, 21, 2))
+    assert result.selected == {"select": "best", "update": 6, "env_steps": 600, "validation_return": 500.0}
+    assert result.evaluation.summary()["return_mean"] == 500.0
+    assert "best, step 600 (validation return 500.0)" in result.evaluation.table()
+    saved = json.loads((tmp_path / "evaluation.json").read_text())
+    assert saved["selected"] == result.selected and saved["summary"]["return_mean"] == 500.0
+
+
+def test_select_last_evaluates_the_final_policy(cartpole):
+    result = train_and_evaluate(scripted_trainer((4, 6)), cartpole, jax.random.key(0), progress=False,
+                                select="last")
+    assert result.selected["select"] == "last" and result.selected["update"] == 20
+    assert result.evaluation.summary()["return_mean"] < 50  # the final policy pushes left: the pole falls
+    with pytest.raises(ValueError, match="unknown select 'worst'; choose from best .*, last"):
+        train_and_evaluate(scripted_trainer(()), cartpole, jax.random.key(0), progress=False, select="worst")
+
+
+def test_without_validation_the_final_policy_is_evaluated(cartpole):
+    result = train_and_evaluate(scripted_trainer((20,)), cartpole, jax.random.key(0), progress=False,
+                                validate_every=0)
+    assert result.validations == [] and result.selected["select"] == "last (nothing validated)"
+    assert result.evaluation.summary()["return_mean"] == 500.0
+
+
+def test_the_cartpole_main_job_validates_at_least_ten_times(cartpole):
+    agent = jarena_agents.build_agent("ppo", jarena.retrieve_config("ppo", cartpole))
+    num_chunks, _, validate_every = training_schedule(agent.settings, None, None, None, 10)
+    validated = [c for c in range(1, num_chunks + 1) if c % validate_every == 0 or c == num_chunks]
+    assert len(validated) >= 10 and validated[-1] == num_chunks  # the final policy is a candidate too
+
+
+def test_a_resumed_run_says_so_and_keeps_the_best_policy(cartpole, tmp_path, capsys):
+    agent = scripted_trainer((4,))
+    kwargs = dict(progress=False, run_dir=tmp_path, eval_videos=0, checkpoint_every=1)
+    assert train_and_evaluate(agent, cartpole, jax.random.key(0), stop_after_chunks=7, **kwargs).evaluation is None
+    assert "resuming" not in capsys.readouterr().out
+    resumed = train_and_evaluate(agent, cartpole, jax.random.key(0), **kwargs)
+    out = capsys.readouterr().out
+    assert f"resuming from step 700 of 2000 (checkpoint {tmp_path.absolute() / 'checkpoints' / '7'})" in out
+    assert resumed.selected == {"select": "best", "update": 4, "env_steps": 400, "validation_return": 500.0}
+    assert resumed.evaluation.summary()["return_mean"] == 500.0
+
+
+def test_training_arguments_are_checked(cartpole):
+    for kwargs, message in (({"validations": 0}, "validations must be a positive integer"),
+                            ({"eval_videos": -1}, "eval_videos must be an integer >= 0"),
+                            ({"total_steps": -5}, "total_steps must be a positive integer")):
+        with pytest.raises(ValueError, match=message):
+            train_and_evaluate(scripted_trainer(()), cartpole, jax.random.key(0), progress=False, **kwargs)
+
+
+def test_a_failing_video_encoder_loses_no_result(cartpole, tmp_path, monkeypatch):
+    """The encoder (or renderer) fails after evaluating: the results are on disk, the videos are a warning
+    that names the fix, and the command still succeeds."""
+    import jarena.training
+
+    def no_encoder(*args, **kwargs):
+        raise RuntimeError("No ffmpeg exe could be found")
+
+    monkeypatch.setattr(jarena.training, "write_episodes", no_encoder)
+    with pytest.warns(UserWarning, match=r"videos not written .*No ffmpeg.*pip install imageio-ffmpeg.*MUJOCO_GL=egl"):
+        result = train_and_evaluate(scripted_trainer((2,)), cartpole, jax.random.key(0), progress=False,
+                                    run_dir=tmp_path / "run", eval_videos=1)
+    assert result.evaluation.summary()["return_mean"] == 500.0
+    assert json.loads((tmp_path / "run" / "evaluation.json").read_text())["summary"]["return_mean"] == 500.0
+    assert (tmp_path / "run" / "learning_curve.png").is_file()
+
+
+def test_the_command_line_survives_a_failing_encoder_and_films_on_request(tmp_path, monkeypatch, capsys):
+    import jarena.render.record
+
+    args = ["train", "ppo", CARTPOLE, "--steps", "2048", "--no-progress", "--set", "rollout_length=64"]
+    assert main(args + ["--run-dir", str(tmp_path / "none"), "--videos", "0"]) == 0
+    assert not (tmp_path / "none" / "videos").exists()
+    assert main(args + ["--run-dir", str(tmp_path / "one"), "--videos", "1"]) == 0
+    assert [p.name for p in (tmp_path / "one" / "videos").iterdir()] == ["eval_episode_0.mp4"]
+    capsys.readouterr()
+
+    def no_encoder(path, frames, fps, format=None):
+        raise RuntimeError("No ffmpeg exe could be found")
+
+    monkeypatch.setattr(jarena.render.record, "write_video", no_encoder)
+    with pytest.warns(UserWarning, match="pip install imageio-ffmpeg"):
+        assert main(args + ["--run-dir", str(tmp_path / "broken")]) == 0
+    assert "| return" in capsys.readouterr().out and (tmp_path / "broken" / "evaluation.json").is_file()
+    assert main(["evaluate", "oracle_cartpole", CARTPOLE, "--episodes", "2", "--videos", "2", "--video-dir",
+                 str(tmp_path / "ev")]) == 0
+    captured = capsys.readouterr()
+    assert "| return" in captured.out and "videos not written" in captured.err and "imageio-ffmpeg" in captured.err
+    assert main(["train", "ppo", CARTPOLE, "--videos", "-1"]) == 2
