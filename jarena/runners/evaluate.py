@@ -94,7 +94,7 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
                         returns=np.asarray(out["returns"]), lengths=np.asarray(out["lengths"]),
                         successes=np.asarray(out["successes"]),
                         metrics={k: np.asarray(v) for k, v in out["metrics"].items()},
-                        faults=np.asarray(out["faults"], np.int32))
+                        faults=np.asarray(out["faults"], np.int32), has_success=arena.task.has_success)
     return result, physics
 
 

@@ -93,3 +93,24 @@ def test_perform_parallel_refuses_empty_or_negative_counts(cartpole, kwargs, mes
 def test_run_refuses_bad_max_steps_and_episode_ids(cartpole, kwargs, message):
     with pytest.raises(ValueError, match=message):
         jarena.run(jarena_agents.build_agent("random"), cartpole, jax.random.key(0), **kwargs)
+
+
+def test_tasks_without_success_report_it_as_not_applicable():
+    """The suite's walker defines no success: its results say "n/a" and keep it out of the summary, while
+    cartpole's success rate stays a number."""
+    import jax
+
+    import jarena
+    import jarena_agents
+
+    assert not jarena.build_arena("dmc|domain:walker,task:walk").task.has_success
+    assert jarena.build_arena("dmc|domain:cartpole,task:balance").task.has_success
+    pendulum = jarena.build_arena("classic|domain:pendulum")
+    blind = jarena.Arena(dynamics=pendulum.dynamics, sensor=pendulum.sensor,
+                         task=jarena.chain(jarena.Task(update=lambda s, o, t, p: (o, s)), jarena.tasks.time_limit(5)))
+    random = jarena_agents.build_agent("random")
+    result = jarena.evaluate(random, blind, jax.random.key(0), episodes=[0, 1])
+    assert "success_rate" not in result.summary() and result.per_episode()[0]["success"] is None
+    assert "| success rate     | n/a (the task defines none)" in result.table()
+    counted = jarena.evaluate(random, pendulum, jax.random.key(0), episodes=[0, 1])
+    assert counted.summary()["success_rate"] == 0.0 and "success rate     | 0.0%" in counted.table()
