@@ -11,8 +11,8 @@ Each ``check_*`` function raises ``AssertionError`` naming the property that fai
 - ``check_determinism``: the same key gives a bit-identical trajectory, different keys different
   initial states, and an episode id gives the same episode whatever the key;
 - ``check_rollout``: over an episode of random actions every value is finite, no step faults (see
-  :mod:`jarena.core.faults`), every observation is in the observation spec, every sampled action in the action spec, and reset and step infos share one
-  structure.
+  :mod:`jarena.core.faults`), every observation is in the observation spec, every sampled action in the
+  action spec, and reset and step infos share one structure.
 """
 
 from __future__ import annotations
