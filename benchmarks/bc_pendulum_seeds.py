@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from main_job_seeds import cpu_model
+from main_job_seeds import cpu_model, finish
 
 ARENA = "classic|domain:pendulum,task:swingup"
 
@@ -64,10 +64,7 @@ def main() -> None:
     summary = (f"\nBC eval return {min(returns):.1f} .. {max(returns):.1f} over {len(returns)} seeds "
                f"(mean {sum(returns) / len(returns):.1f}); collect + train {min(walls):.0f}-{max(walls):.0f} s "
                "(process starts and compiles included).")
-    lines.append(summary)
-    print(summary)
-    if args.out:
-        Path(args.out).write_text("\n".join(lines) + "\n")
+    finish(lines, summary, args.out)
 
 
 if __name__ == "__main__":

@@ -40,6 +40,14 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
+def finish(lines: list[str], summary: str, out: str | None) -> None:
+    """Prints the summary line and writes the table and it to ``out`` (markdown), if given."""
+    lines.append(summary)
+    print(summary)
+    if out:
+        Path(out).write_text("\n".join(lines) + "\n")
+
+
 def run_seed(seed: int, isa: str, folder: Path) -> dict:
     env = dict(os.environ)
     if isa != "native":
@@ -88,10 +96,7 @@ def main() -> None:
                f"{sum(r >= SOLVED for r in returns)} of {len(rows)} reached {SOLVED:g} (CartPole-v1's solved "
                f"threshold); lowest {min(returns):.1f}; wall {walls[0]:.1f}-{walls[-1]:.1f} s per run "
                "(process start, compile and training included).")
-    lines.append(summary)
-    print(summary)
-    if args.out:
-        Path(args.out).write_text("\n".join(lines) + "\n")
+    finish(lines, summary, args.out)
 
 
 if __name__ == "__main__":

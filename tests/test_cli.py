@@ -39,7 +39,8 @@ def test_train_prints_progress_and_table(capsys, tmp_path):
     trained = out[out.index("| return"):].split("\n")[0]
     assert main(["evaluate", "ppo", "classic|domain:cartpole", "--checkpoint", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "restored the best validated policy" in out and trained in out  # the run's config and policy, same eval episodes
+    # the run's config and policy, same eval episodes
+    assert "restored the best validated policy" in out and trained in out
     assert main(["evaluate", "ppo", "classic|domain:cartpole", "--checkpoint", str(tmp_path / "nothing")]) == 2
     assert "no checkpoint found" in capsys.readouterr().err
 

@@ -50,11 +50,6 @@ def scripted_trainer(good_after_chunks: tuple[int, ...]) -> TrainableAgent:
                                settings=Settings())
 
 
-@pytest.fixture(scope="module")
-def cartpole():
-    return jarena.build_arena(CARTPOLE)
-
-
 def test_the_best_validated_policy_is_evaluated_ties_to_the_latest(cartpole, tmp_path):
     agent = scripted_trainer((4, 6))  # validated after chunks 2, 4, ..., 20: 4 and 6 tie at 500
     result = train_and_evaluate(agent, cartpole, jax.random.key(0), progress=False, run_dir=tmp_path, eval_videos=0)

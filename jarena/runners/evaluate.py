@@ -14,6 +14,7 @@ from jarena.core.agent import Agent
 from jarena.core.arena import Arena
 from jarena.core.batching import batch_reset
 from jarena.core.types import ArenaParams
+from jarena.render.record import check_video, write_episodes
 from jarena.runners.loop import frozen_step
 from jarena.runners.results import EvalResult
 
@@ -126,8 +127,6 @@ def evaluate(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_
       An :class:`EvalResult` with per-episode returns, lengths, successes and metrics.
     """
     if videos:
-        from jarena.render.record import check_video
-
         if video_dir is None:
             raise ValueError("evaluate(videos=N) needs a video_dir to write the videos to")
         check_video(arena, video_options, params, params_axis)  # fails before compiling if the arena cannot render
@@ -135,8 +134,6 @@ def evaluate(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_
                                    params_axis=params_axis, split=split, episodes=episodes, max_steps=max_steps,
                                    filmed=int(videos))
     if videos:
-        from jarena.render.record import write_episodes
-
         paths = [Path(video_dir) / f"{split}_episode_{int(i)}" for i in result.episodes[: int(videos)]]
         write_episodes(arena, physics, result.lengths[: int(videos)], paths, video_options, params=params,
                        params_axis=params_axis)

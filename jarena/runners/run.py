@@ -16,6 +16,7 @@ from jarena.core.arena import Arena
 from jarena.core.batching import batch_reset
 from jarena.core.episodes import check_episode_ids
 from jarena.core.types import ArenaParams, Info
+from jarena.render.record import check_video, write_episodes
 from jarena.runners.loop import frozen_step
 
 PyTree = Any
@@ -114,8 +115,6 @@ def run(agent: Agent, arena: Arena, key: jax.Array, *, episode: int | None = Non
     if max_steps is not None:
         check_count(max_steps, "max_steps", "run")
     if video is not None:
-        from jarena.render.record import check_video
-
         check_video(arena, video_options, params)  # fails before compiling when the arena cannot render
     max_steps = max_steps or arena.max_episode_steps
     if max_steps is None:
@@ -128,7 +127,5 @@ def run(agent: Agent, arena: Arena, key: jax.Array, *, episode: int | None = Non
     trajectory, physics = _compiled_run(agent, arena, int(max_steps), episode is not None, video is not None)(
         key, episode_arg, agent_state, params)
     if video is not None:
-        from jarena.render.record import write_episodes
-
         write_episodes(arena, physics, [int(trajectory.length)], [video], video_options, params=params)
     return trajectory

@@ -9,16 +9,6 @@ import jarena
 from jarena.core.spec import Box, Discrete, SpecError
 
 
-@pytest.fixture(scope="module")
-def cartpole():
-    return jarena.build_arena("classic|domain:cartpole")
-
-
-@pytest.fixture(scope="module")
-def pendulum():
-    return jarena.build_arena("classic|domain:pendulum")
-
-
 # ---------------------------------------------------------------------------------------------- action values
 @pytest.mark.parametrize("action", [7, -1, 2, jnp.int32(7), np.int64(-1)])
 def test_out_of_range_discrete_action_is_a_spec_error_naming_the_range(cartpole, action):

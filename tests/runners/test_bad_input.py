@@ -12,16 +12,6 @@ from jarena.core.agent import AgentArenaMismatch, check_agent_fits
 from jarena.runners.evaluate import _compiled_episodes
 
 
-@pytest.fixture(scope="module")
-def cartpole():
-    return jarena.build_arena("classic|domain:cartpole")
-
-
-@pytest.fixture(scope="module")
-def pendulum():
-    return jarena.build_arena("classic|domain:pendulum")
-
-
 def test_an_oracle_on_another_arena_family_says_what_it_is_made_for(pendulum):
     oracle = jarena_agents.build_agent("oracle_cartpole")
     assert oracle.made_for == ("cartpole",)
