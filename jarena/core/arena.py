@@ -212,8 +212,8 @@ class Arena:
 
         A faulted step is ``terminated`` (no bootstrapping from it), its reward is 0 and ``success`` false,
         and the non-finite entries of its observation (``info.observation`` and
-        ``info.final.observation``) are 0, so a learner's value of the final observation is finite.
-        ``reward_terms`` and ``metrics`` are left as the task computed them.
+        ``info.final.observation``), ``reward_terms`` and ``metrics`` are 0, so a learner's value of the final
+        observation and every mean a report takes are finite.
         """
         params = self._check_params(params, "step")
         action = self.action_spec.validate(action, "action")
@@ -244,11 +244,13 @@ class Arena:
         terminated = jnp.asarray(outcome.terminated, bool)
         success = jnp.asarray(outcome.success, bool)
         fault = jnp.zeros((), jnp.int32)
+        reward_terms, metrics = outcome.reward_terms, outcome.metrics
         if invalid_action is not None:
             finite = self.dynamics.is_finite(state.physics) & faults.all_finite(observation) & jnp.isfinite(reward)
             fault = faults.code(invalid_action, ~finite)
             faulted = fault != 0
             observation = faults.zero_nonfinite(observation)
+            reward_terms, metrics = faults.zero_nonfinite((reward_terms, metrics))
             reward = jnp.where(faulted, jnp.zeros((), jnp.float32), reward)
             terminated = terminated | faulted
             success = success & ~faulted
@@ -257,7 +259,7 @@ class Arena:
                     terminated=terminated,
                     truncated=jnp.asarray(outcome.truncated, bool),
                     success=success, goal=outcome.goal,
-                    step=state.step, episode=state.episode, reward_terms=outcome.reward_terms,
-                    metrics=outcome.metrics,
+                    step=state.step, episode=state.episode, reward_terms=reward_terms,
+                    metrics=metrics,
                     final=Final(observation=observation, goal=outcome.goal, step=state.step, episode=state.episode),
                     fault=fault)

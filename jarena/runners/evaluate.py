@@ -13,10 +13,12 @@ import numpy as np
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena
 from jarena.core.batching import batch_reset
+from jarena.core.episodes import check_episode_ids
 from jarena.core.types import ArenaParams
 from jarena.render.record import check_video, write_episodes
 from jarena.runners.loop import frozen_step
 from jarena.runners.results import EvalResult
+from jarena.runners.run import check_count
 
 PyTree = Any
 
@@ -80,6 +82,9 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
         raise ValueError(f"no episodes to evaluate in split {split!r} of arena {arena.name!r}")
     if not 0 <= int(filmed) <= ids.size:
         raise ValueError(f"cannot film {filmed} of {ids.size} episodes; choose 0 .. {ids.size}")
+    check_episode_ids(ids, f"{arena.name}: evaluate")
+    if max_steps is not None:
+        check_count(max_steps, "max_steps", "evaluate")
     max_steps = max_steps or arena.max_episode_steps
     if max_steps is None:
         raise ValueError(f"arena {arena.name!r} has no time limit; pass max_steps to evaluate")

@@ -87,6 +87,21 @@ def test_physics_blow_up_is_a_nonfinite_state_fault(pendulum):
     assert not pendulum.dynamics.is_finite(next_state.physics) and pendulum.dynamics.is_finite(state.physics)
 
 
+def test_a_blow_up_leaves_no_nan_in_reward_terms_metrics_or_any_reported_mean(pendulum):
+    """Pendulum's metric ``upright`` is cos(theta), NaN once theta overflows: a faulted step reports 0 there,
+    so the evaluation's summary (metric means included) is finite and counts every episode as faulted."""
+    import jarena_agents
+
+    params = pendulum.default_params()
+    params = params.replace(dynamics=params.dynamics.replace(dt=jnp.float32(1e30), max_speed=jnp.float32(jnp.inf)))
+    state, _ = jax.jit(pendulum.reset)(jax.random.key(0), params)
+    _, info = jax.jit(pendulum.step)(state, jnp.array([1.0], jnp.float32), params)
+    assert info.metrics and finite(info.metrics) and finite(info.reward_terms)
+    result = jarena.evaluate(jarena_agents.build_agent("random"), pendulum, jax.random.key(0), params=params,
+                             episodes=[0, 1, 2])
+    assert result.num_faulted == 3 and all(np.isfinite(v) for v in result.summary().values())
+
+
 @pytest.mark.parametrize("bad", [7, -1, 2])
 def test_out_of_range_discrete_action_under_jit_runs_the_no_op(bad):
     arena = jarena.build_arena("classic|domain:cartpole,task:balance")

@@ -104,3 +104,17 @@ def test_tasks_without_success_report_it_as_not_applicable():
     assert "| success rate     | n/a (the task defines none)" in result.table()
     counted = jarena.evaluate(random, pendulum, jax.random.key(0), episodes=[0, 1])
     assert counted.summary()["success_rate"] == 0.0 and "success rate     | 0.0%" in counted.table()
+
+
+def test_evaluate_refuses_negative_episode_ids_and_step_caps(cartpole):
+    import jax
+
+    import jarena
+    import jarena_agents
+
+    oracle = jarena_agents.build_agent("oracle_cartpole")
+    with pytest.raises(ValueError, match=r"evaluate.*-5"):
+        jarena.evaluate(oracle, cartpole, jax.random.key(0), episodes=[0, -5])
+    for bad in (0, -1):
+        with pytest.raises(ValueError, match="evaluate: max_steps must be an integer >= 1"):
+            jarena.evaluate(oracle, cartpole, jax.random.key(0), episodes=[0], max_steps=bad)
