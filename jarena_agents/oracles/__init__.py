@@ -2,6 +2,7 @@
 
 from jarena_agents.oracles import (  # noqa: F401  (registers the oracles)
     cartpole,
+    cloth_flattening,
     dmc_cartpole,
     dmc_point_mass,
     dmc_reacher,

@@ -1,0 +1,348 @@
+"""Cloth physics: extended position-based dynamics (XPBD) on a particle grid, with pickers.
+
+One control step of ``dt`` seconds runs ``substeps`` XPBD substeps ("small steps": one constraint
+iteration per substep, which converges better than many iterations of one large step). Each substep:
+
+1. gravity and velocity damping on the free particles, then a position prediction ``x + v h``;
+2. grasped particles follow their picker (infinite mass, fixed offset);
+3. distance constraints in Gauss-Seidel order by graph colouring of the grid (12 passes, each a set of
+   disjoint particle pairs solved exactly in parallel): stretch (grid neighbours), shear (diagonals) and
+   bending (neighbours two apart), each with an XPBD compliance (inverse stiffness, m/N);
+4. long-range attachments (tethers, Kim et al. 2012): no free particle is farther from the nearest particle
+   a picker holds than their distance on the flat cloth, which keeps a hanging cloth from stretching;
+5. self-collision: every particle pair not adjacent on the grid is kept ``self_collision_distance`` apart
+   (pairs from a neighbour list built once per control step, see :mod:`.collision`), so a folded cloth
+   keeps its layers apart and a crumpled one does not pass through itself;
+6. the floor: no particle below ``particle_radius``, with Coulomb friction on its tangential motion;
+7. velocities from the positions' change.
+
+Pickers (SoftGym's): K points, each moved by a displacement per control step. A picker that closes
+grasps the top layer of free particles under it: within ``grasp_radius`` of its centre in x-y and within
+``grasp_depth`` of the highest of those (at most ``max_held``, nearest first), provided the picker reaches
+down to that surface;
+held particles keep their offset to the picker until it opens. Open pickers do not touch the cloth.
+
+Control: float32 ``(K, 4)`` per picker ``(dx, dy, dz, grip)``: displacement in metres over the step
+(within ``+-MAX_PICKER_STEP``), and ``grip > 0`` closes the picker. Pickers stay inside the workspace
+``PICKER_LOW .. PICKER_HIGH``.
+
+The particle mass is uniform, so it does not change the motion of a position-based cloth (constraints
+weight particles by inverse mass); ``mass`` is kept in the params as the cloth's total mass, for
+reporting and for future forces.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from jarena.arenas.cloth import collision
+from jarena.arenas.cloth.mesh import ClothMesh
+from jarena.core.spec import Box
+
+MAX_PICKER_STEP = 1.5
+"""Largest picker displacement per control step along each axis, metres (the control's bound)."""
+PICKER_LOW = np.array([-1.0, -1.0, 0.0], np.float32)
+PICKER_HIGH = np.array([1.0, 1.0, 1.0], np.float32)
+READY_HEIGHT = 0.3
+"""Height of the pickers' ready pose above the origin, metres: where they start and where primitives end."""
+
+
+@struct.dataclass
+class ClothState:
+    """One cloth and its pickers.
+
+    Attributes:
+      positions: float32 (N, 3) particle positions, metres, z up.
+      velocities: float32 (N, 3), m/s.
+      picker_positions: float32 (K, 3).
+      picker_closed: bool (K,).
+      held: int32 (K, G), the particles each picker holds (nearest first), -1 for empty slots.
+      held_offsets: float32 (K, G, 3), held particle minus picker position, fixed at the grasp.
+      mesh: the particle grid (static), for agents that read the state (oracles, planners).
+    """
+
+    positions: jax.Array
+    velocities: jax.Array
+    picker_positions: jax.Array
+    picker_closed: jax.Array
+    held: jax.Array
+    held_offsets: jax.Array
+    mesh: ClothMesh | None = struct.field(pytree_node=False, default=None)
+
+    @property
+    def grasped(self) -> jax.Array:
+        """bool (N,): the particle is held by a picker."""
+        n = self.positions.shape[0]
+        return jnp.zeros((n,), bool).at[_scatter_index(self.held, n)].set(True, mode="drop")
+
+
+@struct.dataclass
+class ClothParams:
+    """Physical constants (float32 scalars; vmap them for domain randomisation).
+
+    Attributes:
+      mass: total mass of the cloth, kg (SoftGym's 0.5); see the module note.
+      stretch_compliance, shear_compliance, bend_compliance: XPBD compliance of the distance constraints
+        between grid neighbours, diagonal neighbours and neighbours two apart, m/N (0: rigid).
+      damping: velocity damping, 1/s (velocities decay as ``exp(-damping t)``; FleX's 1.0).
+      friction: Coulomb friction coefficient with the floor (SoftGym's dynamic friction 0.75).
+      self_friction: Coulomb friction coefficient between touching layers of the cloth (SoftGym's particle
+        friction 1.0).
+      gravity: m/s^2 along -z.
+      particle_radius: particles rest this far above the floor, metres.
+      self_collision_distance: the closest two non-adjacent particles may come, metres.
+      grasp_radius: a closing picker grasps particles within this distance in x-y, metres (SoftGym's picker
+        radius 0.015 + particle radius 0.00625 + threshold 0.007).
+      grasp_depth: ... and at most this far below the highest of them, metres: a pinch from above takes the
+        top layer (default: 0.6 x spacing, less than the 0.8 x spacing between layers). SoftGym's sphere
+        takes every layer within its radius; a large ``grasp_depth`` comes close to that.
+    """
+
+    mass: jax.Array = 0.5
+    stretch_compliance: jax.Array = 0.0
+    shear_compliance: jax.Array = 1e-6
+    bend_compliance: jax.Array = 1e-4
+    damping: jax.Array = 1.0
+    friction: jax.Array = 0.75
+    self_friction: jax.Array = 1.0
+    gravity: jax.Array = 9.81
+    particle_radius: jax.Array = 0.004
+    self_collision_distance: jax.Array = 0.008
+    grasp_radius: jax.Array = 0.028
+    grasp_depth: jax.Array = 0.006
+
+
+@dataclasses.dataclass(frozen=True)
+class ClothPhysics:
+    """Static settings of the simulation (shapes and loop counts, fixed at build time).
+
+    Attributes:
+      mesh: the particle grid.
+      num_pickers: K.
+      max_held: G, the most particles one picker holds (the nearest to its centre within the grasp radius).
+      dt: seconds per control step (SoftGym's 0.01).
+      substeps: XPBD substeps per control step.
+    """
+
+    mesh: ClothMesh
+    num_pickers: int = 1
+    max_held: int = 32
+    dt: float = 0.01
+    substeps: int = 8
+
+    def __post_init__(self):
+        if int(self.num_pickers) < 1:
+            raise ValueError(f"a cloth needs at least one picker, got {self.num_pickers}")
+        if int(self.substeps) < 1:
+            raise ValueError(f"substeps must be at least 1, got {self.substeps}")
+
+    def default_params(self) -> ClothParams:
+        """SoftGym-like constants; collision and contact distances scale with the mesh spacing."""
+        s = self.mesh.spacing
+        return jax.tree_util.tree_map(lambda v: jnp.asarray(v, jnp.float32),
+                                      ClothParams(particle_radius=0.4 * s, self_collision_distance=0.8 * s,
+                                                 grasp_depth=0.6 * s))
+
+    @property
+    def control_spec(self) -> Box:
+        k = int(self.num_pickers)
+        high = np.tile(np.array([MAX_PICKER_STEP] * 3 + [1.0], np.float32), (k, 1))
+        return Box(-high, high, (k, 4), jnp.float32)
+
+    def ready_positions(self) -> jax.Array:
+        """float32 (K, 3): the pickers' ready pose, above the origin at ``READY_HEIGHT``."""
+        return jnp.tile(jnp.array([0.0, 0.0, READY_HEIGHT], jnp.float32), (int(self.num_pickers), 1))
+
+    def state_from_positions(self, positions: jax.Array) -> ClothState:
+        """A cloth at rest at ``positions`` (N, 3) with open pickers at the ready pose."""
+        k, g = int(self.num_pickers), int(self.max_held)
+        positions = jnp.asarray(positions, jnp.float32)
+        return ClothState(positions=positions, velocities=jnp.zeros_like(positions),
+                          picker_positions=self.ready_positions(), picker_closed=jnp.zeros((k,), bool),
+                          held=jnp.full((k, g), -1, jnp.int32), held_offsets=jnp.zeros((k, g, 3), jnp.float32),
+                          mesh=self.mesh)
+
+    # ------------------------------------------------------------------ one control step
+    def step(self, state: ClothState, control: jax.Array, params: ClothParams) -> ClothState:
+        """Advances the cloth by ``dt``: pickers grasp or release, move by ``control[:, :3]``, cloth follows."""
+        control = jnp.asarray(control, jnp.float32)
+        delta = jnp.clip(control[:, :3], -MAX_PICKER_STEP, MAX_PICKER_STEP)
+        closed = control[:, 3] > 0
+        held, offsets = self._grasp(state, closed, params)
+        start = state.picker_positions
+        end = jnp.clip(start + delta, PICKER_LOW, PICKER_HIGH)
+        n = self.mesh.num_particles
+        flat_held = _scatter_index(held, n)
+        inv_mass = jnp.ones((n,), jnp.float32).at[flat_held].set(0.0, mode="drop")
+        h = self.dt / self.substeps
+        neighbours = collision.neighbour_list(state.positions, 2.0 * params.self_collision_distance,
+                                              self._adjacent)
+        # tethers: each free particle to the nearest (on the flat cloth) particle each picker holds
+        rest = self._rest_distance(jnp.arange(n)[:, None, None], jnp.maximum(held, 0)[None])  # (N, K, G)
+        rest = jnp.where(held[None] >= 0, rest, jnp.inf)
+        nearest = jnp.argmin(rest, axis=-1)  # (N, K)
+        tether_to = jnp.where(jnp.isfinite(jnp.min(rest, axis=-1)),
+                              jnp.take_along_axis(held[None].repeat(n, 0), nearest[..., None], -1)[..., 0], -1)
+        tether_length = jnp.min(rest, axis=-1)
+
+        def substep(k, xv):
+            x, v = xv
+            frac = (k + 1.0) / self.substeps
+            pickers = start + frac * (end - start)
+            x_prev = x
+            v = v * jnp.exp(-params.damping * h)
+            v = v.at[:, 2].add(-params.gravity * h)
+            x = x + v * h
+            x = x.at[flat_held].set((pickers[:, None, :] + offsets).reshape(-1, 3), mode="drop")
+            x = self._solve_constraints(x, inv_mass, params, h)
+            x = self._tether(x, inv_mass, tether_to, tether_length)
+            x = collision.separate(x, x_prev, inv_mass, neighbours, params.self_collision_distance,
+                                   params.self_friction)
+            x = self._floor(x, x_prev, inv_mass, params)
+            return x, (x - x_prev) / h
+
+        x, v = jax.lax.fori_loop(0, self.substeps, substep, (state.positions, state.velocities))
+        return ClothState(positions=x, velocities=v, picker_positions=end, picker_closed=closed, held=held,
+                          held_offsets=offsets, mesh=self.mesh)
+
+    def _grasp(self, state: ClothState, closed: jax.Array, params: ClothParams):
+        """What each picker holds after opening (release all) or closing (grasp the nearest free particles)."""
+        n, g = self.mesh.num_particles, int(self.max_held)
+        keeps = closed & state.picker_closed
+        held = jnp.where(keeps[:, None], state.held, -1)
+        offsets = jnp.where(keeps[:, None, None], state.held_offsets, 0.0)
+        taken = jnp.zeros((n,), bool).at[_scatter_index(held, n)].set(True, mode="drop")
+        closing = closed & ~state.picker_closed
+        for k in range(int(self.num_pickers)):  # K is small; pickers grasp in order, never the same particle
+            # the top layer under the picker: free particles within the radius in x-y, at most grasp_depth
+            # below the highest of them, if the picker reaches down to that surface
+            p = state.picker_positions[k]
+            gap = state.positions[:, :2] - p[:2]
+            d_xy = jnp.sqrt(collision.dot(gap, gap))
+            under = (d_xy <= params.grasp_radius) & ~taken
+            top = jnp.max(jnp.where(under, state.positions[:, 2], -jnp.inf))
+            ok = closing[k] & under & (state.positions[:, 2] >= top - params.grasp_depth) & (
+                p[2] <= top + params.grasp_radius)
+            d = d_xy
+            score, idx = jax.lax.top_k(jnp.where(ok, -d, -jnp.inf), min(g, n))
+            got = jnp.isfinite(score)
+            idx = jnp.where(got, idx, -1).astype(jnp.int32)
+            if g > n:
+                idx = jnp.pad(idx, (0, g - n), constant_values=-1)
+                got = jnp.pad(got, (0, g - n))
+            new_offsets = jnp.where(got[:, None], state.positions[jnp.maximum(idx, 0)] - state.picker_positions[k], 0.0)
+            held = held.at[k].set(jnp.where(closing[k], idx, held[k]))
+            offsets = offsets.at[k].set(jnp.where(closing[k], new_offsets, offsets[k]))
+            taken = taken.at[_scatter_index(idx, n)].set(True, mode="drop")
+        return held, offsets
+
+    def _rest_distance(self, i: jax.Array, j: jax.Array) -> jax.Array:
+        """Distance of particles ``i`` and ``j`` on the flat cloth, metres (broadcasting int arrays)."""
+        cols = self.mesh.cols
+        di, dj = (i // cols - j // cols).astype(jnp.float32), (i % cols - j % cols).astype(jnp.float32)
+        return jnp.sqrt(di * di + dj * dj) * self.mesh.spacing
+
+    def _adjacent(self, i: jax.Array, j: jax.Array) -> jax.Array:
+        """bool: particles ``i`` and ``j`` are grid neighbours (rows and columns at most one apart)."""
+        cols = self.mesh.cols
+        return (jnp.abs(i // cols - j // cols) <= 1) & (jnp.abs(i % cols - j % cols) <= 1)
+
+    def _tether(self, x: jax.Array, inv_mass: jax.Array, to: jax.Array, length: jax.Array) -> jax.Array:
+        """Pulls each free particle within ``length`` (N, K) of its tether particle ``to`` (N, K; -1: none)."""
+        for k in range(to.shape[1]):
+            a = x[jnp.maximum(to[:, k], 0)]
+            diff = x - a
+            dist = jnp.sqrt(collision.dot(diff, diff) + 1e-12)
+            over = jnp.where((to[:, k] >= 0) & (inv_mass > 0), jnp.maximum(dist - length[:, k], 0.0), 0.0)
+            x = x - (over / dist)[:, None] * diff
+        return x
+
+    # ------------------------------------------------------------------ constraints
+    def _solve_constraints(self, x: jax.Array, inv_mass: jax.Array, params: ClothParams, h: float) -> jax.Array:
+        mesh = self.mesh
+        grid = x.reshape(mesh.rows, mesh.cols, 3)
+        w = inv_mass.reshape(mesh.rows, mesh.cols)
+        for pair in _constraint_pairs(mesh.rows, mesh.cols):
+            compliance = {"stretch": params.stretch_compliance, "shear": params.shear_compliance,
+                          "bend": params.bend_compliance}[pair.kind]
+            grid = _solve_pairs(grid, w, pair, pair.length * mesh.spacing, compliance / (h * h))
+        return grid.reshape(-1, 3)
+
+    def _floor(self, x: jax.Array, x_prev: jax.Array, inv_mass: jax.Array, params: ClothParams) -> jax.Array:
+        """Keeps free particles at least ``particle_radius`` above z = 0, with Coulomb friction."""
+        r = params.particle_radius
+        depth = jnp.maximum(r - x[:, 2], 0.0) * inv_mass
+        tangential = x[:, :2] - x_prev[:, :2]
+        speed = jnp.sqrt(collision.dot(tangential, tangential))[:, None]
+        scale = jnp.clip(1.0 - params.friction * depth[:, None] / jnp.maximum(speed, 1e-12), 0.0, 1.0)
+        xy = jnp.where(depth[:, None] > 0, x_prev[:, :2] + tangential * scale, x[:, :2])
+        z = x[:, 2] + depth
+        return jnp.concatenate([xy, z[:, None]], axis=-1)
+
+
+def _scatter_index(held: jax.Array, n: int) -> jax.Array:
+    """Flat particle indices of ``held`` with empty slots (-1) sent out of bounds (``n``), for ``mode="drop"``.
+
+    (A -1 index would wrap around to the last particle.)
+    """
+    return jnp.where(held >= 0, held, n).ravel()
+
+
+@dataclasses.dataclass(frozen=True)
+class _Pairs:
+    """A set of disjoint grid pairs ``(i, j) - (i + di, j + dj)`` solved together (one colour)."""
+
+    kind: str
+    di: int
+    dj: int
+    length: float  # rest length in units of spacing
+    mask: np.ndarray  # bool over the (first particle's) pair grid: which pairs belong to this colour
+
+
+@functools.cache
+def _constraint_pairs(rows: int, cols: int) -> tuple[_Pairs, ...]:
+    """The 12 colours: stretch along rows and columns, both shear diagonals, bending along rows and columns."""
+    out = []
+    for kind, di, dj, colour_of in [
+        ("stretch", 0, 1, lambda i, j: j % 2), ("stretch", 1, 0, lambda i, j: i % 2),
+        ("shear", 1, 1, lambda i, j: i % 2), ("shear", 1, -1, lambda i, j: i % 2),
+        ("bend", 0, 2, lambda i, j: (j // 2) % 2), ("bend", 2, 0, lambda i, j: (i // 2) % 2),
+    ]:
+        i, j = np.meshgrid(np.arange(rows - di), np.arange(cols - abs(dj)), indexing="ij")
+        if dj < 0:
+            j = j + 1  # first particle (i, j), second (i + 1, j - 1)
+        for colour in (0, 1):
+            out.append(_Pairs(kind, di, dj, float(np.hypot(di, dj)), colour_of(i, j) == colour))
+    return tuple(out)
+
+
+def _solve_pairs(grid: jax.Array, w: jax.Array, pairs: _Pairs, rest: float, alpha: jax.Array) -> jax.Array:
+    """One XPBD projection of the disjoint distance constraints ``pairs`` on ``grid`` (rows, cols, 3)."""
+    rows, cols = grid.shape[:2]
+    di, dj = pairs.di, pairs.dj
+    if dj >= 0:
+        a = (slice(0, rows - di), slice(0, cols - dj))
+        b = (slice(di, rows), slice(dj, cols))
+    else:
+        a = (slice(0, rows - di), slice(-dj, cols))
+        b = (slice(di, rows), slice(0, cols + dj))
+    pa, pb = grid[a], grid[b]
+    wa, wb = w[a], w[b]
+    diff = pa - pb
+    dist = jnp.sqrt(collision.dot(diff, diff) + 1e-12)
+    denom = wa + wb + alpha
+    lam = jnp.where(pairs.mask & (denom > 0), -(dist - rest) / jnp.maximum(denom, 1e-12), 0.0)
+    step = (lam / dist)[..., None] * diff
+    da, db = wa[..., None] * step, -wb[..., None] * step
+
+    def place(d, s):
+        pad = [(s[0].start, rows - s[0].stop), (s[1].start, cols - s[1].stop), (0, 0)]
+        return jnp.pad(d, pad)
+
+    return grid + place(da, a) + place(db, b)

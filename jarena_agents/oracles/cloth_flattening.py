@@ -1,0 +1,124 @@
+"""``oracle_cloth_flattening``: corner pulling with privileged particle positions.
+
+The analytic demonstrator of the fabric-smoothing literature (Seita et al.'s corner-pulling oracle, in the
+spirit of Agent-Arena's ``oracle-towel``), for the ``cloth`` arenas' pick-and-place tools. Each action:
+
+1. fit the flat goal: the flat cloth in the rigid pose (rotation, translation, face up or down) nearest
+   the particles now in least squares (its centre kept near the origin, so it stays in view);
+2. among the corners and edge midpoints (``K`` pickers: the ``K`` worst), pick the particle farthest from
+   its goal position and place it there, preferring particles on top (a covered one counts a quarter of its
+   distance: the pickers grasp the top layer);
+3. once the normalised coverage reaches ``stop_coverage`` (Agent-Arena's oracle: 0.999), do nothing (pick
+   and place at the workspace's empty corner).
+
+Actions are in the frame of the arena's tool (pixels of the top-down camera or normalised world points),
+read from the tool's state; the default heights and camera of :mod:`jarena.arenas.cloth.tools` are assumed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jarena.arenas.cloth import camera as camera_lib
+from jarena.arenas.cloth import coverage as coverage_lib
+from jarena.arenas.cloth import tools as tools_lib
+from jarena.arenas.cloth.mesh import ClothMesh
+from jarena.core.agent import Agent
+from jarena_agents.basic import SpecState
+from jarena_agents.config import Range, in_unit_interval, make_config, ranged
+from jarena_agents.registry import register_agent
+
+
+@dataclasses.dataclass(frozen=True)
+class ClothFlatteningOracleConfig:
+    reach: float = ranged(0.15, Range(0.0, 0.6))  # metres: the goal's centre stays this close to the origin
+    stop_coverage: float = in_unit_interval(0.999)  # normalised coverage at which the oracle stops
+
+
+def _handles(mesh: ClothMesh) -> np.ndarray:
+    """int32: the particles the oracle may pull, the four corners and the four edge midpoints."""
+    r, c = mesh.rows - 1, mesh.cols - 1
+    points = [(0, 0), (0, c), (r, c), (r, 0), (0, c // 2), (r // 2, c), (r, c // 2), (r // 2, 0)]
+    return np.array([mesh.index(i, j) for i, j in points], np.int32)
+
+
+def flat_goal(positions: jax.Array, mesh: ClothMesh, reach: float) -> jax.Array:
+    """float32 (N, 2): the flat cloth best aligned with ``positions`` (N, 3) from above.
+
+    The rigid motion in the plane (rotation and translation, face up or mirrored face down) that brings
+    the rest grid nearest the particles in least squares (2-D Kabsch), with its centre kept within
+    ``reach`` metres of the origin on each axis so that the goal stays in view.
+    """
+    rest = jnp.asarray(mesh.rest_positions[:, :2])  # centred at the origin
+    now = positions[:, :2]
+    centre = jnp.mean(now, axis=0)
+    best, best_cost = None, None
+    for mirror in (jnp.array([1.0, 1.0]), jnp.array([1.0, -1.0])):
+        source = rest * mirror
+        h = source.T @ (now - centre)
+        angle = jnp.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
+        c, s = jnp.cos(angle), jnp.sin(angle)
+        goal = source @ jnp.array([[c, s], [-s, c]])
+        cost = jnp.sum((goal + centre - now) ** 2)
+        if best is None:
+            best, best_cost = goal, cost
+        else:
+            best = jnp.where(cost < best_cost, goal, best)
+            best_cost = jnp.minimum(cost, best_cost)
+    return best + jnp.clip(centre, -reach, reach)
+
+
+def make_cloth_flattening_oracle(config=None) -> Agent:
+    """The oracle for ``cloth|...,task:flattening`` arenas with pick-and-place tools."""
+    cfg = make_config(ClothFlatteningOracleConfig, config, agent="oracle_cloth_flattening")
+    defaults = tools_lib.PickPlaceParams()
+    camera = camera_lib.CameraParams()
+
+    def init(key, spec, num_arenas):
+        return SpecState(spec)
+
+    def one(positions, mesh: ClothMesh, pickers: int, coordinates: str):
+        goal = flat_goal(positions, mesh, cfg.reach)
+        handles = jnp.asarray(_handles(mesh))
+        error = jnp.linalg.norm(positions[handles, :2] - goal[handles], axis=-1)
+        # prefer handles on top (a pinch there takes them, not a layer covering them)
+        xy = jnp.linalg.norm(positions[None, :, :2] - positions[handles, None, :2], axis=-1)
+        covered = jnp.any((xy < mesh.spacing) & (positions[None, :, 2] > positions[handles, None, 2]
+                                                 + 0.4 * mesh.spacing), axis=-1)
+        error = jnp.where(covered, error * 0.25, error)
+        _, worst = jax.lax.top_k(error, pickers)
+        pick, place = positions[handles[worst], :2], goal[handles[worst]]
+        if coordinates == "pixel":
+            to_frame = lambda xy, z: camera_lib.world_to_pixel(  # noqa: E731
+                jnp.concatenate([xy, jnp.full(xy.shape[:-1] + (1,), z)], -1), camera)
+        else:
+            to_frame = lambda xy, z: xy / defaults.workspace  # noqa: E731
+        action = jnp.concatenate([to_frame(pick, defaults.pick_height), to_frame(place, defaults.place_height)], -1)
+        done = coverage_lib.normalised_coverage(positions, mesh) >= cfg.stop_coverage
+        action = jnp.where(done, -1.0, jnp.clip(action, -1.0, 1.0))
+        return action.reshape(-1)
+
+    def act(state, info, key, privileged):
+        physics = privileged.physics
+        mesh = physics.mesh
+        coordinates = tools_lib.coordinates_of(privileged.tool)
+        if mesh is None or coordinates is None:
+            raise TypeError("oracle_cloth_flattening acts on cloth arenas with a pick-and-place tool "
+                            "(action:pixel_pick_and_place(K) or pick_and_place(K))")
+        pickers = state.spec.action.shape[-1] // 4
+        positions = physics.positions
+        batch = positions.shape[:-2]
+        flat = positions.reshape((-1,) + positions.shape[-2:])
+        actions = jax.vmap(lambda p: one(p, mesh, pickers, coordinates))(flat)
+        return actions.reshape(batch + actions.shape[-1:]), state
+
+    return Agent(name="oracle_cloth_flattening", init=init, act=act, privileged=True, made_for=("cloth",),
+                 config=dataclasses.asdict(cfg))
+
+
+register_agent("oracle_cloth_flattening", make_cloth_flattening_oracle, tags=("oracle",))
+

@@ -1,0 +1,133 @@
+"""Cloth arenas from strings: pieces, errors, the pick-and-place primitive, initial states and the oracle."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jarena
+from jarena.arenas.cloth import camera, coverage
+from jarena.arenas.cloth.tools import WORKSPACE_HALF_WIDTH
+from jarena.building.grammar import ArenaStringError
+
+SMALL = "particles:16,resolution:32,horizon:4"
+
+
+def _arena(extra: str = "", **keys) -> jarena.Arena:
+    pairs = ",".join(f"{k}:{v}" for k, v in keys.items())
+    return jarena.build_arena(f"cloth|{SMALL}" + (f",{pairs}" if pairs else "") + extra)
+
+
+def test_the_benchmark_strings_are_listed_and_build():
+    listed = jarena.list_arenas("cloth")
+    assert "cloth|domain:square_fabric,initial:crumpled,action:pixel_pick_and_place(1),task:flattening" in listed
+    assert all(s in jarena.list_arenas("benchmark") for s in listed if "initial:crumpled" in s)
+    arena = jarena.build_arena(listed[0])
+    assert arena.observation_spec["rgb"].shape == (128, 128, 3)
+    assert arena.observation_spec["depth"].shape == (128, 128)
+    assert arena.action_spec.shape == (4,)
+    assert arena.max_episode_steps == 30
+    assert arena.dynamics.name == "cloth"
+
+
+@pytest.mark.parametrize("string, words", [
+    ("cloth|domain:towel", ["square_fabric", "rectangular_fabric"]),
+    ("cloth|task:folding_in_half", ["flattening"]),
+    ("cloth|initial:wet", ["crumpled", "flat"]),
+    ("cloth|action:pick_and_place(0)", ["positive number of pickers"]),
+    ("cloth|particles:2", ["particles", ">= 3"]),
+    ("cloth|size:[0.4,2.0]", ["size"]),
+    ("cloth|horizon:0", ["horizon"]),
+])
+def test_bad_strings_name_the_valid_choices(string, words):
+    with pytest.raises(ArenaStringError) as e:
+        jarena.build_arena(string)
+    for word in words:
+        assert word in str(e.value)
+
+
+def test_the_pickers_follow_the_tool():
+    assert _arena(action="pick_and_place(2)").dynamics.control_spec.shape == (2, 4)
+    assert _arena(action="pick_and_place(2)").action_spec.shape == (8,)
+    low_level = _arena(action="picker(0.05)")
+    assert low_level.action_spec.shape == (1, 4)
+
+
+def test_a_pick_and_place_leaves_the_grasped_particle_at_the_place_point():
+    arena = _arena(initial="flat", action="pick_and_place(1)")
+    state, _ = arena.reset(episode=3)
+    x = np.asarray(state.physics.positions)
+    pick_particle = int(np.argmin(np.linalg.norm(x[:, :2], axis=-1)))  # the cloth's middle
+    pick = x[pick_particle, :2]
+    place = pick + np.array([0.08, -0.05])
+    action = jnp.asarray(np.concatenate([pick, place]) / WORKSPACE_HALF_WIDTH, jnp.float32)
+    state, info = jax.jit(arena.step)(state, action)
+    after = np.asarray(state.physics.positions)
+    assert np.linalg.norm(after[pick_particle, :2] - place) < 0.01
+    assert info.fault == 0
+    assert not bool(state.physics.grasped.any())  # released
+    np.testing.assert_allclose(np.asarray(state.physics.picker_positions), [[0, 0, 0.3]], atol=1e-5)  # ready pose
+
+
+def test_pixel_pick_and_place_picks_where_the_camera_sees_the_point():
+    arena = _arena(initial="flat")
+    state, info = arena.reset(episode=5)
+    x = np.asarray(state.physics.positions)
+    middle = int(np.argmin(np.linalg.norm(x[:, :2] - x[:, :2].mean(0), axis=-1)))
+    uv = np.asarray(camera.world_to_pixel(jnp.asarray(x[middle]), camera.CameraParams()))
+    place_uv = uv + np.array([0.1, 0.05])  # right and down in the image: +x and -y in the world
+    state, info = jax.jit(arena.step)(state, jnp.asarray(np.concatenate([uv, place_uv]), jnp.float32))
+    place = np.asarray(camera.pixel_to_world(jnp.asarray(place_uv), 0.02, camera.CameraParams()))
+    assert place[0] > x[middle, 0] + 0.05 and place[1] < x[middle, 1] - 0.02
+    assert np.linalg.norm(np.asarray(state.physics.positions[middle, :2]) - place) < 0.01
+
+
+def test_flat_starts_are_flat_and_crumpled_starts_are_not():
+    flat, crumpled = _arena(initial="flat"), _arena(initial="crumpled")
+    episodes = jnp.arange(6)
+    _, flat_info = jax.vmap(lambda e: flat.reset(episode=e))(episodes)
+    _, crumpled_info = jax.jit(jax.vmap(lambda e: crumpled.reset(episode=e)))(episodes)
+    assert np.all(np.asarray(flat_info.metrics["normalised_coverage"]) > 0.99)
+    crumpled_coverage = np.asarray(crumpled_info.metrics["normalised_coverage"])
+    assert crumpled_coverage.mean() < 0.85 and len(set(np.round(crumpled_coverage, 3))) == 6
+    # the metric is the coverage module's, from the particles
+    state, info = crumpled.reset(episode=2)
+    mesh = state.physics.mesh
+    np.testing.assert_allclose(float(info.metrics["normalised_coverage"]),
+                               float(coverage.normalised_coverage(state.physics.positions, mesh)), rtol=1e-6)
+
+
+def test_episodes_are_deterministic_and_flat_starts_the_same_in_any_batch():
+    crumpled = _arena()
+    reset = jax.jit(jax.vmap(lambda e: crumpled.reset(episode=e)))
+    first, second = reset(jnp.array([1, 4, 7]))[0], reset(jnp.array([1, 4, 7]))[0]
+    np.testing.assert_array_equal(np.asarray(first.physics.positions), np.asarray(second.physics.positions))
+    flat = _arena(initial="flat")
+    reset = jax.jit(jax.vmap(lambda e: flat.reset(episode=e)))
+    one = reset(jnp.array([4]))[0].physics.positions[0]
+    many = reset(jnp.array([1, 4, 7]))[0].physics.positions[1]
+    np.testing.assert_array_equal(np.asarray(one), np.asarray(many))
+
+
+def test_the_observation_is_the_top_down_camera():
+    arena = _arena(initial="flat")
+    state, info = arena.reset(episode=0)
+    image = camera.render(state.physics.positions, state.physics.mesh, camera.CameraParams(), 32)
+    np.testing.assert_array_equal(np.asarray(info.observation["rgb"]), np.asarray(image["rgb"]))
+    np.testing.assert_array_equal(np.asarray(info.observation["mask"]), np.asarray(image["mask"]).astype(np.uint8))
+    assert 0 < int(info.observation["mask"].sum()) < 32 * 32
+
+
+def test_the_flattening_oracle_raises_coverage():
+    from jarena_agents.registry import build_agent
+
+    arena = jarena.build_arena("cloth|domain:square_fabric,initial:crumpled,particles:16,resolution:32,horizon:6")
+    oracle = build_agent("oracle_cloth_flattening")
+    result = jarena.evaluate(oracle, arena, episodes=list(range(8)))
+    _, start = jax.vmap(lambda e: arena.reset(episode=e))(jnp.arange(8))
+    before = np.asarray(start.metrics["normalised_coverage"])
+    after = np.asarray(result.metrics["normalised_coverage"])
+    assert after.mean() > before.mean() + 0.08, (before, after)
+    assert np.mean(after >= 0.9) >= 0.6, after
+    random = jarena.evaluate(build_agent("random"), arena, episodes=list(range(8)))
+    assert after.mean() > np.asarray(random.metrics["normalised_coverage"]).mean() + 0.15
