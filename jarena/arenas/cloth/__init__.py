@@ -92,6 +92,10 @@ def camera_sensor(mesh: ClothMesh, resolution: int) -> Sensor:
                   default_params=lambda: jax.tree_util.tree_map(jnp.float32, camera_lib.CameraParams()))
 
 
+_render_jit = jax.jit(camera_lib.render, static_argnums=(1, 3))
+"""The camera for host-side frames (videos), compiled once per mesh and frame size, not once per frame."""
+
+
 def cloth_dynamics(physics: ClothPhysics, initial: str) -> Dynamics:
     """The cloth as a :class:`Dynamics`, its episodes starting from ``initial`` (a key of ``INITIAL_STATES``)."""
     make = INITIAL_STATES[initial]
@@ -99,8 +103,7 @@ def cloth_dynamics(physics: ClothPhysics, initial: str) -> Dynamics:
 
     def render(state, params=None, *, width: int = 320, height: int = 240, **_):
         size = int(max(width, height))
-        image = jax.jit(camera_lib.render, static_argnums=(1, 3))(state.positions, mesh, camera_lib.CameraParams(),
-                                                                  size)
+        image = _render_jit(state.positions, mesh, camera_lib.CameraParams(), size)
         rgb = np.asarray(image["rgb"])
         top, left = (size - height) // 2, (size - width) // 2
         return rgb[top:top + height, left:left + width]

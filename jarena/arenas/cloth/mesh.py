@@ -89,9 +89,3 @@ class ClothMesh:
         a = (i * self.cols + j).ravel()
         b, c, d = a + 1, a + self.cols + 1, a + self.cols
         return np.concatenate([np.stack([a, b, c], -1), np.stack([a, c, d], -1)]).astype(np.int32)
-
-    @functools.cached_property
-    def rest_distances(self) -> np.ndarray:
-        """float32 (N, N): distance between every two particles on the flat cloth."""
-        p = self.rest_positions
-        return np.linalg.norm(p[:, None] - p[None], axis=-1).astype(np.float32)
