@@ -1,0 +1,212 @@
+"""Pick-and-place actions and cloth physics steps per second (issue 17), with 128 x 128 observations.
+
+Three measurements, each one jitted ``lax.scan`` for a batch of B cloths, compiled apart
+(``jit(...).lower(...).compile()``, timed), one warm-up call, then ``--repeats`` timed calls interleaved across
+the measurements (best shown, median in the JSON):
+
+- ``act``: the benchmark arena ``cloth|domain:square_fabric,initial:crumpled,action:pixel_pick_and_place(1),
+  task:flattening`` (40 x 40 particles, 128 x 128 ``rgb``, ``depth`` and ``mask``), ``--actions`` actions per
+  call of ``jarena.batch_step`` without resets, uniform random pick and place points. Reported: actions/s
+  (``B x actions / seconds``) and the physics steps they contain (one action = ``tool.substeps`` = 52 steps).
+- ``act+reset``: the same with auto-reset (``lazy``) and episodes of ``--horizon`` actions, so that one
+  crumpled reset (about 250 physics steps, simulated on device) falls into every ``horizon`` actions.
+- ``physics``: ``ClothPhysics.step`` alone (8 substeps, self-collision, no task, no camera), ``--steps``
+  steps per call with random picker controls, reported as physics steps/s.
+- ``render``: the top-down camera alone (``camera.render`` at 128 x 128) of the cloths' current particles,
+  ``--frames`` renders per call (frames/s).
+
+The peer, SoftGym (NVIDIA FleX), cannot be installed here (it needs a patched FleX build and Docker). Its
+reported rate: about 55 environment steps per second headless, with a 40-particle cloth and no rendering, on an
+RTX 3080 (SoftGym issue #47, github.com/Xingyu-Lin/softgym/issues/47), one cloth per process; one SoftGym
+environment step is ``action_repeat`` = 8 FleX steps, so about 440 FleX steps/s, and one pick-and-place
+(50-250 FleX steps, ``../shared/reference/softgym_cloth.md``) takes 0.1-0.6 s: 2-9 actions per second per
+process. The table's ratio column divides by the upper end, 9 actions/s (and 440 steps/s for ``physics``).
+
+Usage::
+
+    python benchmarks/cloth_throughput.py --help
+    python benchmarks/cloth_throughput.py --batch-sizes 1,4 --actions 2 --steps 8 --repeats 1   # CPU smoke run
+    python benchmarks/cloth_throughput.py --out results/cloth_gpu.md        # GPU: B = 1, 64, 1024, 4096
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import importlib.metadata
+import os
+import platform
+import statistics
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+
+try:
+    import jarena
+except ImportError:  # run from a checkout without installing: put the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    import jarena
+from jarena.arenas.cloth import camera as camera_lib  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from cartpole_throughput import cpu_model, fmt, parse_batches, write_report  # noqa: E402
+
+ARENA = "cloth|domain:square_fabric,initial:crumpled,action:pixel_pick_and_place(1),task:flattening"
+MEASUREMENTS = ("act", "act+reset", "physics", "render")
+SOFTGYM_ACTIONS_PER_S = 9.0  # upper end of SoftGym's per-process rate, see the module docstring
+SOFTGYM_STEPS_PER_S = 440.0
+
+
+def make(measurement: str, batch: int, args):
+    """Returns ``(run, carry, units)``: ``run(carry) -> carry`` one timed call, ``units`` counted per call."""
+    arena = jarena.build_arena(f"{ARENA},resolution:{args.resolution},horizon:{args.horizon}")
+    params = arena.default_params()
+    states, _ = jax.jit(lambda k: jarena.batch_reset(arena, k, batch, params))(jax.random.key(args.seed))
+    jax.block_until_ready(states)
+    if measurement in ("act", "act+reset"):
+        reset_done = measurement == "act+reset"
+        size = arena.action_spec.shape[0]
+
+        def run(carry):
+            states, key = carry
+
+            def body(states, t):
+                actions = jax.random.uniform(jax.random.fold_in(key, t), (batch, size), minval=-1.0, maxval=1.0)
+                states, info = jarena.batch_step(arena, states, actions, params, reset_done=reset_done)
+                return states, info.reward.mean()
+
+            states, rewards = jax.lax.scan(body, states, jnp.arange(args.actions))
+            return states, jax.random.fold_in(key, rewards.shape[0])
+
+        return run, (states, jax.random.key(args.seed + 1)), batch * args.actions
+    physics_states = arena.privileged(states).physics
+    if measurement == "physics":
+        dynamics = arena.dynamics
+        k = physics_states.picker_positions.shape[1]
+
+        def run(carry):
+            physics, key = carry
+
+            def body(physics, t):
+                move = jax.random.uniform(jax.random.fold_in(key, t), (batch, k, 3), minval=-0.01, maxval=0.01)
+                control = jnp.concatenate([move, jnp.ones((batch, k, 1))], axis=-1)
+                return jax.vmap(dynamics.step, in_axes=(0, 0, None))(physics, control, params.dynamics), None
+
+            physics, _ = jax.lax.scan(body, physics, jnp.arange(args.steps))
+            return physics, jax.random.fold_in(key, 1)
+
+        return run, (physics_states, jax.random.key(args.seed + 2)), batch * args.steps
+    camera = jax.tree_util.tree_map(jnp.float32, camera_lib.CameraParams())
+    mesh = physics_states.mesh
+
+    def run(carry):
+        positions, total = carry
+
+        def body(total, t):
+            shifted = positions + 1e-4 * t.astype(jnp.float32)
+            image = jax.vmap(lambda x: camera_lib.render(x, mesh, camera, args.resolution))(shifted)
+            return total + image["depth"].mean(), None
+
+        total, _ = jax.lax.scan(body, total, jnp.arange(args.frames))
+        return positions, total
+
+    return run, (physics_states.positions, jnp.zeros(())), batch * args.frames
+
+
+def time_batch(batch: int, args) -> dict:
+    out = {}
+    compiled = {}
+    for m in args.measurements:
+        run, carry, units = make(m, batch, args)
+        t0 = time.perf_counter()
+        fn = jax.jit(run).lower(carry).compile()
+        compile_s = time.perf_counter() - t0
+        carry = jax.block_until_ready(fn(carry))  # warm-up
+        compiled[m] = [fn, carry, units, compile_s, []]
+    for _ in range(args.repeats):
+        for m in args.measurements:
+            entry = compiled[m]
+            t0 = time.perf_counter()
+            entry[1] = jax.block_until_ready(entry[0](entry[1]))
+            entry[4].append(time.perf_counter() - t0)
+    for m, (_, _, units, compile_s, times) in compiled.items():
+        best = min(times)
+        out[m] = {"per_s": units / best, "median_per_s": units / statistics.median(times), "best_s": best,
+                  "compile_s": compile_s, "units_per_call": units}
+        print(f"B={batch:6d} {m:10s} {units / best:12.4g}/s  (call {best * 1e3:.1f} ms, compile {compile_s:.1f} s)",
+              flush=True)
+    return out
+
+
+def environment() -> dict:
+    dev = jax.devices()[0]
+    return {"date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+            "backend": jax.default_backend(), "device": dev.device_kind, "cpu": cpu_model(),
+            "cpu_count": os.cpu_count(), "python": platform.python_version(), "jax": jax.__version__,
+            "jaxlib": importlib.metadata.version("jaxlib"), "command": " ".join(["python"] + sys.argv)}
+
+
+def markdown(env: dict, rows: list[dict], args) -> str:
+    steps_per_action = jarena.build_arena(ARENA).tool.substeps
+    lines = [f"Device: {env['device']} ({env['backend']}), CPU {env['cpu']} x {env['cpu_count']}, Python "
+             f"{env['python']}, jax {env['jax']}; {env['date']}", f"Command: `{env['command']}`", "",
+             f"One action = {steps_per_action} physics steps (8 substeps each), 40 x 40 particles, "
+             f"{args.resolution} x {args.resolution} observations. Ratio: against SoftGym's ~"
+             f"{SOFTGYM_ACTIONS_PER_S:g} actions/s ({SOFTGYM_STEPS_PER_S:g} FleX steps/s) per process.", "",
+             "| B | actions/s (act) | physics steps/s in act | actions/s (act+reset) | physics steps/s (physics) "
+             "| frames/s (render) | act vs SoftGym |", "|---:|---:|---:|---:|---:|---:|---:|"]
+    for row in rows:
+        r = row["results"]
+        act = r.get("act", {}).get("per_s")
+        cells = [fmt(act), fmt(None if act is None else act * steps_per_action),
+                 fmt(r.get("act+reset", {}).get("per_s")), fmt(r.get("physics", {}).get("per_s")),
+                 fmt(r.get("render", {}).get("per_s")),
+                 "-" if act is None else f"{act / SOFTGYM_ACTIONS_PER_S:.0f}x"]
+        lines.append(f"| {row['batch']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def parse_args(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--batch-sizes", type=parse_batches, default=None,
+                   help="comma-separated B (default: 1,64,1024,4096 on GPU, 1,4 on CPU)")
+    p.add_argument("--measurements", default=",".join(MEASUREMENTS),
+                   help=f"comma-separated, from {list(MEASUREMENTS)} (default: all)")
+    p.add_argument("--actions", type=int, default=4, help="actions per timed call (default 4)")
+    p.add_argument("--steps", type=int, default=52, help="physics steps per timed call of 'physics' (default 52)")
+    p.add_argument("--frames", type=int, default=8, help="renders per timed call of 'render' (default 8)")
+    p.add_argument("--horizon", type=int, default=30, help="actions per episode for act+reset (default 30)")
+    p.add_argument("--resolution", type=int, default=128, help="camera resolution (default 128)")
+    p.add_argument("--repeats", type=int, default=3, help="timed calls per measurement (default 3)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default=None, help="write a markdown table (and JSON beside it) here")
+    args = p.parse_args(argv)
+    names = [m.strip() for m in args.measurements.split(",") if m.strip()]
+    unknown = sorted(set(names) - set(MEASUREMENTS))
+    if unknown or not names:
+        p.error(f"unknown measurement(s) {unknown}; choose from {list(MEASUREMENTS)}")
+    args.measurements = names
+    for key in ("actions", "steps", "frames", "horizon", "repeats"):
+        if getattr(args, key) < 1:
+            p.error(f"--{key} must be >= 1")
+    if args.batch_sizes is None:
+        args.batch_sizes = [1, 64, 1024, 4096] if jax.default_backend() == "gpu" else [1, 4]
+    return args
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    env = environment()
+    rows = [{"batch": b, "results": time_batch(b, args)} for b in args.batch_sizes]
+    table = markdown(env, rows, args)
+    print(table)
+    if args.out:
+        write_report(args.out, table, {"environment": env, "args": vars(args), "rows": rows})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
