@@ -23,13 +23,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jarena.arenas.cloth import camera as camera_lib
 from jarena.arenas.cloth import coverage as coverage_lib
-from jarena.arenas.cloth import tools as tools_lib
 from jarena.arenas.cloth.mesh import ClothMesh
 from jarena.core.agent import Agent
 from jarena_agents.basic import SpecState
 from jarena_agents.config import Range, in_unit_interval, make_config, ranged
+from jarena_agents.oracles import cloth_actions
 from jarena_agents.registry import register_agent
 
 
@@ -75,8 +74,6 @@ def flat_goal(positions: jax.Array, mesh: ClothMesh, reach: float) -> jax.Array:
 def make_cloth_flattening_oracle(config=None) -> Agent:
     """The oracle for ``cloth|...,task:flattening`` arenas with pick-and-place tools."""
     cfg = make_config(ClothFlatteningOracleConfig, config, agent="oracle_cloth_flattening")
-    defaults = tools_lib.PickPlaceParams()
-    camera = camera_lib.CameraParams()
 
     def init(key, spec, num_arenas):
         return SpecState(spec)
@@ -86,29 +83,16 @@ def make_cloth_flattening_oracle(config=None) -> Agent:
         handles = jnp.asarray(_handles(mesh))
         error = jnp.linalg.norm(positions[handles, :2] - goal[handles], axis=-1)
         # prefer handles on top (a pinch there takes them, not a layer covering them)
-        xy = jnp.linalg.norm(positions[None, :, :2] - positions[handles, None, :2], axis=-1)
-        covered = jnp.any((xy < mesh.spacing) & (positions[None, :, 2] > positions[handles, None, 2]
-                                                 + 0.4 * mesh.spacing), axis=-1)
-        error = jnp.where(covered, error * 0.25, error)
+        error = jnp.where(cloth_actions.covered(positions, handles, mesh.spacing), error * 0.25, error)
         _, worst = jax.lax.top_k(error, pickers)
-        pick, place = positions[handles[worst], :2], goal[handles[worst]]
-        if coordinates == "pixel":
-            to_frame = lambda xy, z: camera_lib.world_to_pixel(  # noqa: E731
-                jnp.concatenate([xy, jnp.full(xy.shape[:-1] + (1,), z)], -1), camera)
-        else:
-            to_frame = lambda xy, z: xy / defaults.workspace  # noqa: E731
-        action = jnp.concatenate([to_frame(pick, defaults.pick_height), to_frame(place, defaults.place_height)], -1)
+        action = cloth_actions.encode(positions[handles[worst], :2], goal[handles[worst]], coordinates)
         done = coverage_lib.normalised_coverage(positions, mesh) >= cfg.stop_coverage
-        action = jnp.where(done, -1.0, jnp.clip(action, -1.0, 1.0))
-        return action.reshape(-1)
+        return jnp.where(done, cloth_actions.idle(pickers), action)
 
     def act(state, info, key, privileged):
+        coordinates = cloth_actions.frame_of(privileged, "oracle_cloth_flattening")
         physics = privileged.physics
         mesh = physics.mesh
-        coordinates = tools_lib.coordinates_of(privileged.tool)
-        if mesh is None or coordinates is None:
-            raise TypeError("oracle_cloth_flattening acts on cloth arenas with a pick-and-place tool "
-                            "(action:pixel_pick_and_place(K) or pick_and_place(K))")
         pickers = state.spec.action.shape[-1] // 4
         positions = physics.positions
         batch = positions.shape[:-2]

@@ -1,4 +1,4 @@
-"""Cloth manipulation arenas in pure JAX: SoftGym's fabric flattening with pick-and-place, from pixels.
+"""Cloth manipulation arenas in pure JAX: SoftGym's fabric flattening and folding with pick-and-place, from pixels.
 
 Builder ``cloth``::
 
@@ -10,8 +10,10 @@ Builder ``cloth``::
 - ``initial``: ``crumpled`` or ``flat`` (:mod:`.initial`).
 - ``action``: ``pixel_pick_and_place(K)``, ``pick_and_place(K)`` or the low-level ``picker(speed)``
   (:mod:`.tools`); the cloth gets the K pickers the tool moves.
-- ``task``: ``flattening`` (:mod:`.tasks`).
-- ``horizon``: actions per episode (default 30, as SoftGym's flattening).
+- ``task``: ``flattening``, or a fold: ``side_fold``, ``diagonal_fold``, ``one_corner_inward`` (:mod:`.tasks`;
+  a fold's goal particle positions are in ``info.goal``).
+- ``horizon``: actions per episode (SoftGym's defaults: 30 for flattening, 15 for a fold from a flat start,
+  45 from a crumpled one).
 - observations (:mod:`.camera`): ``rgb`` uint8 (R, R, 3), ``depth`` float32 (R, R) metres and ``mask``
   uint8 (R, R) from the top-down camera, ``resolution`` R (default 128). Oracles read the particles from
   ``arena.privileged(state).physics.positions``.
@@ -43,10 +45,14 @@ from jarena.tasks.time_limit import time_limit
 
 DOMAINS: dict[str, tuple[float, float]] = {"square_fabric": (0.4, 0.4), "rectangular_fabric": (0.5, 0.3)}
 """Domain -> default (width along x, height along y), metres."""
-TASKS = {"flattening": tasks_lib.flattening}
-"""Task -> ``(mesh) -> Task``."""
-HORIZONS = {"flattening": 30}
-"""Task -> default actions per episode (SoftGym's)."""
+TASKS = {"flattening": lambda mesh, initial: tasks_lib.flattening(mesh),
+         **{kind: (lambda mesh, initial, kind=kind: tasks_lib.folding(mesh, kind, canonical=initial != "flat"))
+            for kind in tasks_lib.FOLDS}}
+"""Task -> ``(mesh, initial) -> Task`` (a fold from a crumpled start aims at the canonical flat pose)."""
+HORIZONS = {"flattening": 30, **{kind: 15 for kind in tasks_lib.FOLDS}}
+"""Task -> default actions per episode from a flat start (SoftGym's); a fold from a crumpled start gets
+``CRUMPLED_FOLD_EXTRA`` more, to flatten first."""
+CRUMPLED_FOLD_EXTRA = 30
 PICKER_TOOLS = ("pick_and_place", "pixel_pick_and_place")
 DEFAULT_ACTION = Call("pixel_pick_and_place", (1,))
 
@@ -140,7 +146,9 @@ def build(domain: str = "square_fabric", task: str = "flattening", initial: str 
     physics = ClothPhysics(mesh, num_pickers=_num_pickers(action), substeps=substeps)
     tool = make_tool(action)
     steps = max(tool.substeps, 1)
-    tasks = [TASKS[task](mesh), time_limit((horizon or HORIZONS[task]) * steps)]
+    if horizon is None:
+        horizon = HORIZONS[task] + (CRUMPLED_FOLD_EXTRA if task in tasks_lib.FOLDS and initial != "flat" else 0)
+    tasks = [TASKS[task](mesh, initial), time_limit(horizon * steps)]
     if wrap is not None:
         tasks.append(make_task(wrap))
     extra = {}
@@ -162,7 +170,9 @@ def variants() -> list[tuple[str, tuple[str, ...]]]:
     for domain in DOMAINS:
         for task in TASKS:
             for initial in INITIAL_STATES:
-                tags = ("cloth", "pixels") + (("benchmark",) if initial == "crumpled" else ())
+                # the benchmarks: flattening from crumpled starts, folding from flat ones (SoftGym's)
+                benchmark = initial == ("crumpled" if task == "flattening" else "flat")
+                tags = ("cloth", "pixels") + (("benchmark",) if benchmark else ())
                 out.append((f"cloth|domain:{domain},initial:{initial},action:pixel_pick_and_place(1),task:{task}",
                             tags))
     return out

@@ -21,8 +21,11 @@ def _arena(extra: str = "", **keys) -> jarena.Arena:
 def test_the_benchmark_strings_are_listed_and_build():
     listed = jarena.list_arenas("cloth")
     assert "cloth|domain:square_fabric,initial:crumpled,action:pixel_pick_and_place(1),task:flattening" in listed
-    assert all(s in jarena.list_arenas("benchmark") for s in listed if "initial:crumpled" in s)
-    arena = jarena.build_arena(listed[0])
+    benchmark = set(jarena.list_arenas("benchmark"))
+    assert all(s in benchmark for s in listed if "initial:crumpled" in s and "task:flattening" in s)
+    folds = [s for s in listed if "task:flattening" not in s]
+    assert len(folds) == 12 and all((s in benchmark) == ("initial:flat," in s) for s in folds)
+    arena = jarena.build_arena(next(s for s in listed if "task:flattening" in s))
     assert arena.observation_spec["rgb"].shape == (128, 128, 3)
     assert arena.observation_spec["depth"].shape == (128, 128)
     assert arena.action_spec.shape == (4,)

@@ -1,0 +1,48 @@
+"""What the cloth oracles share: turning pick and place points into a pick-and-place tool's action."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from jarena.arenas.cloth import camera as camera_lib
+from jarena.arenas.cloth import tools as tools_lib
+
+
+def frame_of(privileged, agent: str) -> str:
+    """``"pixel"`` or ``"world"``: the frame of the arena's pick-and-place tool (a clear error without one)."""
+    coordinates = tools_lib.coordinates_of(privileged.tool)
+    if getattr(privileged.physics, "mesh", None) is None or coordinates is None:
+        raise TypeError(f"{agent} acts on cloth arenas with a pick-and-place tool "
+                        "(action:pixel_pick_and_place(K) or pick_and_place(K))")
+    return coordinates
+
+
+def encode(pick: jax.Array, place: jax.Array, coordinates: str) -> jax.Array:
+    """float32 (4 K,): the action that picks at ``pick`` and places at ``place`` (K, 2) world x-y, metres.
+
+    In the tool's frame (``coordinates``), with the default heights and camera of
+    :mod:`jarena.arenas.cloth.tools`, clipped to [-1, 1].
+    """
+    defaults = tools_lib.PickPlaceParams()
+    if coordinates == "pixel":
+        camera = camera_lib.CameraParams()
+
+        def to_frame(xy, z):
+            return camera_lib.world_to_pixel(jnp.concatenate([xy, jnp.full(xy.shape[:-1] + (1,), z)], -1), camera)
+    else:
+        def to_frame(xy, z):
+            return xy / defaults.workspace
+    action = jnp.concatenate([to_frame(pick, defaults.pick_height), to_frame(place, defaults.place_height)], -1)
+    return jnp.clip(action, -1.0, 1.0).reshape(-1)
+
+
+def idle(num_pickers: int) -> jax.Array:
+    """float32 (4 K,): pick and place at the workspace's empty corner (the cloth only settles)."""
+    return -jnp.ones((4 * int(num_pickers),), jnp.float32)
+
+
+def covered(positions: jax.Array, particles: jax.Array, spacing: float) -> jax.Array:
+    """bool (H,): whether another layer lies on top of each of ``particles`` (H,) (a pinch would take it)."""
+    xy = jnp.linalg.norm(positions[None, :, :2] - positions[particles, None, :2], axis=-1)
+    return jnp.any((xy < spacing) & (positions[None, :, 2] > positions[particles, None, 2] + 0.4 * spacing), axis=-1)
