@@ -18,6 +18,9 @@ import jax.numpy as jnp
 
 _PRIMES = (73856093, 19349663, 83492791)
 
+Vec = tuple[jax.Array, ...]
+"""A vector field over the particles as its per-coordinate (N,) arrays (see :func:`components`)."""
+
 
 def dot(a: jax.Array, b: jax.Array) -> jax.Array:
     """Sum over the last axis of ``a * b`` as explicit adds in a fixed order.
@@ -65,19 +68,21 @@ def _pack(cells: jax.Array) -> jax.Array:
     return c[..., 0] | (c[..., 1] << 10) | (c[..., 2] << 20)
 
 
-def _components(x: jax.Array) -> list[jax.Array]:
+def components(x: jax.Array) -> tuple[jax.Array, ...]:
     """The columns of ``x`` (N, 3) as three (N,) arrays: gathers and sums over them run several times faster
     on a GPU than over a trailing axis of 3 (same arithmetic, same results)."""
-    return [x[:, a] for a in range(x.shape[1])]
+    return tuple(x[:, a] for a in range(x.shape[1]))
 
 
-def _squared_distances(x: jax.Array, others: jax.Array) -> jax.Array:
-    """float32 (N, M): squared distance of each particle to ``others`` (int32 (N, M) indices)."""
-    total = None
-    for c in _components(x):
-        d = c[others] - c[:, None]
-        total = d * d if total is None else total + d * d
-    return total
+def _windows(values: jax.Array, start: jax.Array, size: int) -> jax.Array:
+    """``values[start + s]`` for ``s < size``, shape ``start.shape + (size,)`` (``start <= len(values)``).
+
+    One gather of contiguous windows: on a GPU its indices are ``start.shape``, not ``size`` times larger,
+    which makes it cheaper than gathering each element (entries past the end of ``values`` read 0).
+    """
+    padded = jnp.concatenate([values, jnp.zeros((size,), values.dtype)])
+    window = jax.vmap(lambda s: jax.lax.dynamic_slice(padded, (s,), (size,)))
+    return window(start.ravel()).reshape(*start.shape, size)
 
 
 def neighbour_list(x: jax.Array, radius: jax.Array, excluded, *, slots: int = 16,
@@ -104,18 +109,21 @@ def neighbour_list(x: jax.Array, radius: jax.Array, excluded, *, slots: int = 16
     corners = jnp.stack(jnp.meshgrid(*([jnp.arange(2, dtype=jnp.int32)] * 3), indexing="ij"), -1).reshape(8, 3)
     block = low[:, None, :] + corners[None]  # (N, 8, 3)
     bucket = _hash(block, buckets)  # (N, 8)
-    slot = jnp.arange(slots, dtype=jnp.int32)
-    position = start[bucket][..., None] + slot  # (N, 8, slots)
-    filled = slot < count[bucket][..., None]
-    candidate = order[jnp.minimum(position, n - 1)]
+    # each queried bucket's first `slots` particles in key order: windows of the arrays sorted by key
+    first = start[bucket]
+    filled = jnp.arange(slots, dtype=jnp.int32) < count[bucket][..., None]  # (N, 8, slots)
+    candidate = _windows(order, first, slots)
     # a bucket may hold other cells (hash collisions): keep only particles really in the queried cell,
     # which also lists every particle once
-    really = _pack(cell)[candidate] == _pack(block)[:, :, None]
+    really = _windows(_pack(cell)[order], first, slots) == _pack(block)[:, :, None]
     candidate = candidate.reshape(n, -1)
     valid = (filled & really).reshape(n, -1)
     me = jnp.arange(n, dtype=jnp.int32)[:, None]
     valid &= (candidate != me) & ~excluded(jnp.broadcast_to(me, candidate.shape), candidate)
-    d2 = _squared_distances(x, candidate)
+    d2 = None
+    for c in components(x):
+        d = _windows(c[order], first, slots).reshape(n, -1) - c[:, None]
+        d2 = d * d if d2 is None else d2 + d * d
     valid &= d2 < radius * radius
     score = jnp.where(valid, -d2, -jnp.inf)
     best, pick = jax.lax.top_k(score, max_neighbours)
@@ -123,38 +131,42 @@ def neighbour_list(x: jax.Array, radius: jax.Array, excluded, *, slots: int = 16
     return jnp.where(jnp.isfinite(best), chosen, -1)
 
 
-def separate(x: jax.Array, x_prev: jax.Array, inv_mass: jax.Array, neighbours: jax.Array, distance: jax.Array,
-             friction: jax.Array) -> jax.Array:
+def pair_shares(inv_mass: jax.Array, neighbours: jax.Array) -> jax.Array:
+    """float32 (N, M): the share ``w_i / (w_i + w_j)`` of each listed pair's correction that :func:`separate`
+    moves particle ``i`` (``w``: ``inv_mass``; 0 if both are held fixed). Constant over a control step."""
+    wi, wj = inv_mass[:, None], inv_mass[jnp.maximum(neighbours, 0)]
+    return jnp.where(wi + wj > 0, wi / jnp.maximum(wi + wj, 1e-12), 0.0)
+
+
+def separate(x: Vec, x_prev: Vec, share: jax.Array, neighbours: jax.Array, distance: jax.Array,
+             friction: jax.Array) -> Vec:
     """Pushes listed pairs closer than ``distance`` apart, with Coulomb friction between them.
 
     Jacobi: each particle moves its inverse-mass share of each pair's correction. Friction (position-based,
     as Macklin et al. 2014) removes the pair's relative tangential motion over the substep up to
-    ``friction`` times the penetration depth. Written per coordinate (see :func:`_components`).
+    ``friction`` times the penetration depth. Positions are given per coordinate (see :func:`components`).
 
     Args:
-      x: float32 (N, 3) positions; x_prev: (N, 3) positions at the start of the substep; inv_mass: float32
-        (N,), 0 for particles held fixed; neighbours: int32 (N, M) from :func:`neighbour_list` (-1 entries
-        ignored); distance: metres; friction: coefficient.
+      x: positions, three float32 (N,) arrays; x_prev: positions at the start of the substep, likewise;
+        share: float32 (N, M) from :func:`pair_shares`; neighbours: int32 (N, M) from :func:`neighbour_list`
+        (-1 entries ignored); distance: metres; friction: coefficient.
     """
     j = jnp.maximum(neighbours, 0)
-    position = _components(x)
-    moved = _components(x - x_prev)
-    diff = [c[:, None] - c[j] for c in position]
+    diff = [c[:, None] - c[j] for c in x]
     dist = jnp.sqrt(dot_list(diff, diff) + 1e-12)
     normal = [d / dist for d in diff]
-    wi, wj = inv_mass[:, None], inv_mass[j]
-    share = jnp.where(wi + wj > 0, wi / jnp.maximum(wi + wj, 1e-12), 0.0)
     depth = jnp.where((neighbours >= 0) & (dist < distance), distance - dist, 0.0)
+    moved = [c - p for c, p in zip(x, x_prev, strict=True)]
     motion = [m[:, None] - m[j] for m in moved]
     along = dot_list(motion, normal)
     tangential = [m - along * n for m, n in zip(motion, normal, strict=True)]
     slide = jnp.sqrt(dot_list(tangential, tangential) + 1e-12)
     grip = jnp.where(depth > 0, jnp.minimum(1.0, friction * depth / slide), 0.0)
     out = []
-    for c, n, t in zip(position, normal, tangential, strict=True):
+    for c, n, t in zip(x, normal, tangential, strict=True):
         push = (share * depth) * n - (share * grip) * t
         total = push[:, 0]
         for k in range(1, push.shape[1]):  # explicit adds in a fixed order, as fixed_sum
             total = total + push[:, k]
         out.append(c + total)
-    return jnp.stack(out, axis=-1)
+    return tuple(out)

@@ -16,6 +16,10 @@ iteration per substep, which converges better than many iterations of one large 
 6. the floor: no particle below ``particle_radius``, with Coulomb friction on its tangential motion;
 7. velocities from the positions' change.
 
+Within a step, positions and velocities are kept per coordinate (three (N,) arrays, see
+:func:`.collision.components`): the same arithmetic, which XLA fuses much better on a GPU than arrays with a
+trailing axis of 3.
+
 Pickers (SoftGym's): K points, each moved by a displacement per control step. A picker that closes
 grasps the top layer of free particles under it: within ``grasp_radius`` of its centre in x-y and within
 ``grasp_depth`` of the highest of those (at most ``max_held``, nearest first), provided the picker reaches
@@ -42,6 +46,7 @@ import numpy as np
 from flax import struct
 
 from jarena.arenas.cloth import collision
+from jarena.arenas.cloth.collision import Vec
 from jarena.arenas.cloth.mesh import ClothMesh
 from jarena.core.spec import Box
 
@@ -180,9 +185,15 @@ class ClothPhysics:
         n = self.mesh.num_particles
         flat_held = _scatter_index(held, n)
         inv_mass = jnp.ones((n,), jnp.float32).at[flat_held].set(0.0, mode="drop")
+        # each held particle's picker and offset, so that the substeps place held particles without a scatter
+        holder = jnp.full((n,), -1, jnp.int32).at[flat_held].set(
+            jnp.repeat(jnp.arange(held.shape[0], dtype=jnp.int32), held.shape[1]), mode="drop")
+        offset = tuple(jnp.zeros((n,), jnp.float32).at[flat_held].set(offsets[..., a].ravel(), mode="drop")
+                       for a in range(3))
         h = self.dt / self.substeps
         neighbours = collision.neighbour_list(state.positions, 2.0 * params.self_collision_distance,
                                               self._adjacent)
+        share = collision.pair_shares(inv_mass, neighbours)
         # tethers: each free particle to the nearest (on the flat cloth) particle each picker holds
         rest = self._rest_distance(jnp.arange(n)[:, None, None], jnp.maximum(held, 0)[None])  # (N, K, G)
         rest = jnp.where(held[None] >= 0, rest, jnp.inf)
@@ -190,26 +201,29 @@ class ClothPhysics:
         tether_to = jnp.where(jnp.isfinite(jnp.min(rest, axis=-1)),
                               jnp.take_along_axis(held[None].repeat(n, 0), nearest[..., None], -1)[..., 0], -1)
         tether_length = jnp.min(rest, axis=-1)
+        decay = jnp.exp(-params.damping * h)
 
         def substep(k, xv):
             x, v = xv
             frac = (k + 1.0) / self.substeps
             pickers = start + frac * (end - start)
             x_prev = x
-            v = v * jnp.exp(-params.damping * h)
-            v = v.at[:, 2].add(-params.gravity * h)
-            x = x + v * h
-            x = x.at[flat_held].set((pickers[:, None, :] + offsets).reshape(-1, 3), mode="drop")
+            v = tuple(c * decay for c in v)
+            v = (v[0], v[1], v[2] + -params.gravity * h)
+            x = tuple(c + u * h for c, u in zip(x, v, strict=True))
+            x = tuple(jnp.where(holder >= 0, pickers[jnp.maximum(holder, 0), a] + offset[a], x[a])
+                      for a in range(3))
             x = self._solve_constraints(x, inv_mass, params, h)
             x = self._tether(x, inv_mass, tether_to, tether_length)
-            x = collision.separate(x, x_prev, inv_mass, neighbours, params.self_collision_distance,
+            x = collision.separate(x, x_prev, share, neighbours, params.self_collision_distance,
                                    params.self_friction)
             x = self._floor(x, x_prev, inv_mass, params)
-            return x, (x - x_prev) / h
+            return x, tuple((c - p) / h for c, p in zip(x, x_prev, strict=True))
 
-        x, v = jax.lax.fori_loop(0, self.substeps, substep, (state.positions, state.velocities))
-        return ClothState(positions=x, velocities=v, picker_positions=end, picker_closed=closed, held=held,
-                          held_offsets=offsets, mesh=self.mesh)
+        x, v = jax.lax.fori_loop(0, self.substeps, substep,
+                                 (collision.components(state.positions), collision.components(state.velocities)))
+        return ClothState(positions=jnp.stack(x, axis=-1), velocities=jnp.stack(v, axis=-1), picker_positions=end,
+                          picker_closed=closed, held=held, held_offsets=offsets, mesh=self.mesh)
 
     def _grasp(self, state: ClothState, closed: jax.Array, params: ClothParams):
         """What each picker holds after opening (release all) or closing (grasp the nearest free particles)."""
@@ -253,37 +267,37 @@ class ClothPhysics:
         cols = self.mesh.cols
         return (jnp.abs(i // cols - j // cols) <= 1) & (jnp.abs(i % cols - j % cols) <= 1)
 
-    def _tether(self, x: jax.Array, inv_mass: jax.Array, to: jax.Array, length: jax.Array) -> jax.Array:
+    def _tether(self, x: Vec, inv_mass: jax.Array, to: jax.Array, length: jax.Array) -> Vec:
         """Pulls each free particle within ``length`` (N, K) of its tether particle ``to`` (N, K; -1: none)."""
         for k in range(to.shape[1]):
-            a = x[jnp.maximum(to[:, k], 0)]
-            diff = x - a
-            dist = jnp.sqrt(collision.dot(diff, diff) + 1e-12)
+            anchor = jnp.maximum(to[:, k], 0)
+            diff = [c - c[anchor] for c in x]
+            dist = jnp.sqrt(collision.dot_list(diff, diff) + 1e-12)
             over = jnp.where((to[:, k] >= 0) & (inv_mass > 0), jnp.maximum(dist - length[:, k], 0.0), 0.0)
-            x = x - (over / dist)[:, None] * diff
+            x = tuple(c - (over / dist) * d for c, d in zip(x, diff, strict=True))
         return x
 
     # ------------------------------------------------------------------ constraints
-    def _solve_constraints(self, x: jax.Array, inv_mass: jax.Array, params: ClothParams, h: float) -> jax.Array:
+    def _solve_constraints(self, x: Vec, inv_mass: jax.Array, params: ClothParams, h: float) -> Vec:
         mesh = self.mesh
-        grid = x.reshape(mesh.rows, mesh.cols, 3)
+        grid = tuple(c.reshape(mesh.rows, mesh.cols) for c in x)
         w = inv_mass.reshape(mesh.rows, mesh.cols)
         for pair in _constraint_pairs(mesh.rows, mesh.cols):
             compliance = {"stretch": params.stretch_compliance, "shear": params.shear_compliance,
                           "bend": params.bend_compliance}[pair.kind]
             grid = _solve_pairs(grid, w, pair, pair.length * mesh.spacing, compliance / (h * h))
-        return grid.reshape(-1, 3)
+        return tuple(c.ravel() for c in grid)
 
-    def _floor(self, x: jax.Array, x_prev: jax.Array, inv_mass: jax.Array, params: ClothParams) -> jax.Array:
+    def _floor(self, x: Vec, x_prev: Vec, inv_mass: jax.Array, params: ClothParams) -> Vec:
         """Keeps free particles at least ``particle_radius`` above z = 0, with Coulomb friction."""
         r = params.particle_radius
-        depth = jnp.maximum(r - x[:, 2], 0.0) * inv_mass
-        tangential = x[:, :2] - x_prev[:, :2]
-        speed = jnp.sqrt(collision.dot(tangential, tangential))[:, None]
-        scale = jnp.clip(1.0 - params.friction * depth[:, None] / jnp.maximum(speed, 1e-12), 0.0, 1.0)
-        xy = jnp.where(depth[:, None] > 0, x_prev[:, :2] + tangential * scale, x[:, :2])
-        z = x[:, 2] + depth
-        return jnp.concatenate([xy, z[:, None]], axis=-1)
+        depth = jnp.maximum(r - x[2], 0.0) * inv_mass
+        tangential = [c - p for c, p in zip(x[:2], x_prev[:2], strict=True)]
+        speed = jnp.sqrt(collision.dot_list(tangential, tangential))
+        scale = jnp.clip(1.0 - params.friction * depth / jnp.maximum(speed, 1e-12), 0.0, 1.0)
+        xy = [jnp.where(depth > 0, p + t * scale, c)
+              for c, p, t in zip(x[:2], x_prev[:2], tangential, strict=True)]
+        return (*xy, x[2] + depth)
 
 
 def _scatter_index(held: jax.Array, n: int) -> jax.Array:
@@ -322,9 +336,9 @@ def _constraint_pairs(rows: int, cols: int) -> tuple[_Pairs, ...]:
     return tuple(out)
 
 
-def _solve_pairs(grid: jax.Array, w: jax.Array, pairs: _Pairs, rest: float, alpha: jax.Array) -> jax.Array:
-    """One XPBD projection of the disjoint distance constraints ``pairs`` on ``grid`` (rows, cols, 3)."""
-    rows, cols = grid.shape[:2]
+def _solve_pairs(grid: Vec, w: jax.Array, pairs: _Pairs, rest: float, alpha: jax.Array) -> Vec:
+    """One XPBD projection of the disjoint distance constraints ``pairs`` on ``grid`` (3 of (rows, cols))."""
+    rows, cols = w.shape
     di, dj = pairs.di, pairs.dj
     if dj >= 0:
         a = (slice(0, rows - di), slice(0, cols - dj))
@@ -332,17 +346,14 @@ def _solve_pairs(grid: jax.Array, w: jax.Array, pairs: _Pairs, rest: float, alph
     else:
         a = (slice(0, rows - di), slice(-dj, cols))
         b = (slice(di, rows), slice(0, cols + dj))
-    pa, pb = grid[a], grid[b]
     wa, wb = w[a], w[b]
-    diff = pa - pb
-    dist = jnp.sqrt(collision.dot(diff, diff) + 1e-12)
+    diff = [c[a] - c[b] for c in grid]
+    dist = jnp.sqrt(collision.dot_list(diff, diff) + 1e-12)
     denom = wa + wb + alpha
     lam = jnp.where(pairs.mask & (denom > 0), -(dist - rest) / jnp.maximum(denom, 1e-12), 0.0)
-    step = (lam / dist)[..., None] * diff
-    da, db = wa[..., None] * step, -wb[..., None] * step
+    scale = lam / dist
 
     def place(d, s):
-        pad = [(s[0].start, rows - s[0].stop), (s[1].start, cols - s[1].stop), (0, 0)]
-        return jnp.pad(d, pad)
+        return jnp.pad(d, [(s[0].start, rows - s[0].stop), (s[1].start, cols - s[1].stop)])
 
-    return grid + place(da, a) + place(db, b)
+    return tuple(c + place(wa * (scale * d), a) + place(-wb * (scale * d), b) for c, d in zip(grid, diff, strict=True))
