@@ -15,7 +15,7 @@ from flax import struct
 
 from jarena.arenas.cloth import camera as camera_lib
 from jarena.arenas.cloth import coverage as coverage_lib
-from jarena.arenas.cloth.collision import fixed_sum
+from jarena.arenas.cloth.collision import dot, fixed_sum
 from jarena.arenas.cloth.mesh import ClothMesh
 from jarena.core.task import Task
 from jarena.core.tree import as_float32
@@ -154,7 +154,7 @@ def unfolded_distances(mesh: ClothMesh, kind: str) -> np.ndarray:
 
 def _mean_distance(positions: jax.Array, goal: jax.Array) -> jax.Array:
     d = positions - goal
-    return fixed_sum(jnp.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]), axis=0) / goal.shape[0]
+    return fixed_sum(jnp.sqrt(dot(d, d)), axis=0) / goal.shape[0]
 
 
 def folding(mesh: ClothMesh, kind: str, canonical: bool = False) -> Task:
