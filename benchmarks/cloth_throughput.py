@@ -7,7 +7,7 @@ the measurements (best shown, median in the JSON):
 - ``act``: the benchmark arena ``cloth|domain:square_fabric,initial:crumpled,action:pixel_pick_and_place(1),
   task:flattening`` (40 x 40 particles, 128 x 128 ``rgb``, ``depth`` and ``mask``), ``--actions`` actions per
   call of ``jarena.batch_step`` without resets, uniform random pick and place points. Reported: actions/s
-  (``B x actions / seconds``) and the physics steps they contain (one action = ``tool.substeps`` = 52 steps).
+  (``B x actions / seconds``) and the physics steps they contain (one action = ``tool.substeps`` = 68 steps).
 - ``act+reset``: the same with auto-reset (``lazy``) and episodes of ``--horizon`` actions, so that one
   crumpled reset (about 250 physics steps, simulated on device) falls into every ``horizon`` actions.
 - ``physics``: ``ClothPhysics.step`` alone (8 substeps, self-collision, no task, no camera), ``--steps``
@@ -176,7 +176,7 @@ def parse_args(argv=None):
     p.add_argument("--measurements", default=",".join(MEASUREMENTS),
                    help=f"comma-separated, from {list(MEASUREMENTS)} (default: all)")
     p.add_argument("--actions", type=int, default=4, help="actions per timed call (default 4)")
-    p.add_argument("--steps", type=int, default=52, help="physics steps per timed call of 'physics' (default 52)")
+    p.add_argument("--steps", type=int, default=68, help="physics steps per timed call of 'physics' (default 68)")
     p.add_argument("--frames", type=int, default=8, help="renders per timed call of 'render' (default 8)")
     p.add_argument("--horizon", type=int, default=30, help="actions per episode for act+reset (default 30)")
     p.add_argument("--resolution", type=int, default=128, help="camera resolution (default 128)")

@@ -21,6 +21,13 @@ from jarena.core.task import Task
 from jarena.core.tree import as_float32
 
 
+def physics_metrics(physics) -> dict[str, jax.Array]:
+    """Metrics every cloth task reports about its simulation: ``collision_overflow``, the particles the
+    self-collision search could not read in the last physics step (0 unless piled deeper than it reads;
+    see :class:`.physics.ClothState`)."""
+    return {"collision_overflow": jnp.asarray(physics.collision_overflow, jnp.float32)}
+
+
 @struct.dataclass
 class FlatteningParams:
     """``success_coverage``: normalised coverage at which flattening succeeds (Agent-Arena's 0.99)."""
@@ -45,7 +52,8 @@ def flattening(mesh: ClothMesh) -> Task:
         cov = coverage_lib.coverage(physics.positions, mesh)
         normalised = jnp.clip(cov / area, 0.0, 1.0)
         improvement = jnp.where(area - initial > 1e-9, (cov - initial) / jnp.maximum(area - initial, 1e-9), 1.0)
-        metrics = {"coverage": cov, "normalised_coverage": normalised, "normalised_improvement": improvement}
+        metrics = {"coverage": cov, "normalised_coverage": normalised, "normalised_improvement": improvement,
+                   **physics_metrics(physics)}
         return normalised, normalised >= params.success_coverage, metrics
 
     def reset(key, physics, outcome, params):
@@ -185,24 +193,24 @@ def folding(mesh: ClothMesh, kind: str, canonical: bool = False) -> Task:
         best = jnp.argmin(raw / unfolded)
         return raw[best], raw[best] / unfolded[best]
 
-    def measure(positions, goals, initial, params):
-        distance, normalised = distances(positions, goals)
+    def measure(physics, goals, initial, params):
+        distance, normalised = distances(physics.positions, goals)
         improvement = 1.0 - distance / jnp.maximum(initial, 1e-9)
         metrics = {"fold_distance": distance, "normalised_fold_distance": normalised,
-                   "fold_improvement": improvement}
+                   "fold_improvement": improvement, **physics_metrics(physics)}
         return normalised, normalised <= params.success_distance, metrics
 
     def reset(key, physics, outcome, params):
         goals = folded_goals(mesh, kind, rest if canonical else physics.positions)
         initial, _ = distances(physics.positions, goals)
-        _, success, metrics = measure(physics.positions, goals, initial, params)
+        _, success, metrics = measure(physics, goals, initial, params)
         terms = dict(outcome.reward_terms, normalised_fold_distance=jnp.zeros((), jnp.float32))
         return outcome.replace(goal=goals[0].reshape(-1), success=success, metrics=dict(outcome.metrics, **metrics),
                                reward_terms=terms), (goals, initial)
 
     def update(state, outcome, transition, params):
         goals, initial = state
-        normalised, success, metrics = measure(transition.physics.positions, goals, initial, params)
+        normalised, success, metrics = measure(transition.physics, goals, initial, params)
         return outcome.replace(reward=outcome.reward - normalised, success=success, goal=goals[0].reshape(-1),
                                reward_terms=dict(outcome.reward_terms, normalised_fold_distance=-normalised),
                                metrics=dict(outcome.metrics, **metrics)), state

@@ -5,6 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import jarena
 from jarena.arenas.cloth import collision, coverage
 from jarena.arenas.cloth.mesh import ClothMesh
 from jarena.arenas.cloth.physics import ClothPhysics
@@ -165,8 +166,46 @@ def test_the_neighbour_list_finds_the_close_pairs_all_pairs_would():
     x = jnp.asarray(rng.uniform(0, 0.1, (300, 3)).astype(np.float32))
     radius = 0.02
     never = lambda i, j: jnp.zeros(i.shape, bool)  # noqa: E731
-    found = np.asarray(collision.neighbour_list(x, radius, never, slots=32, max_neighbours=64))
+    found, overflow = collision.neighbour_list(x, radius, never, slots=12, max_neighbours=64)
+    found = np.asarray(found)
+    assert int(overflow) == 0
     d = np.linalg.norm(np.asarray(x)[:, None] - np.asarray(x)[None], axis=-1)
     for i in range(300):
         expect = set(np.nonzero((d[i] < radius) & (np.arange(300) != i))[0])
         assert set(found[i][found[i] >= 0]) == expect
+
+
+def test_the_neighbour_list_counts_the_particles_a_full_cell_held_back():
+    x = jnp.full((20, 3), 0.005, jnp.float32).at[:, 0].add(jnp.arange(20) * 1e-4)  # 20 in one cell
+    never = lambda i, j: jnp.zeros(i.shape, bool)  # noqa: E731
+    _, overflow = collision.neighbour_list(x, 0.02, never, slots=16)
+    assert int(overflow) == 20 - 16
+
+
+def test_self_collision_pushes_are_equal_and_opposite():
+    # a particle pressed into a layer of six: the correction moves the pile's centre of mass by nothing,
+    # however many contacts a particle has (an unequal push would make a resting pile crawl)
+    rng = np.random.default_rng(1)
+    x = rng.uniform(0, 0.01, (40, 3)).astype(np.float32)
+    never = lambda i, j: jnp.zeros(i.shape, bool)  # noqa: E731
+    neighbours, _ = collision.neighbour_list(jnp.asarray(x), 0.01, never, max_neighbours=40)
+    share = collision.pair_shares(jnp.ones((40,), jnp.float32), neighbours)
+    xs = collision.components(jnp.asarray(x))
+    out = collision.separate(xs, xs, share, neighbours, jnp.float32(0.005), jnp.float32(0.3))
+    moved = np.stack([np.asarray(o) for o in out], -1) - x
+    assert np.abs(moved).max() > 1e-4  # pairs were pushed
+    np.testing.assert_allclose(moved.sum(0), 0.0, atol=1e-6)
+
+
+def test_a_crumpled_cloth_left_alone_comes_to_rest_where_it_lies():
+    arena = jarena.build_arena("cloth|domain:square_fabric,initial:crumpled,particles:24,action:picker,"
+                               "eval_episodes:4")
+    states, _ = jax.vmap(lambda e: arena.reset(episode=e))(jnp.asarray(list(arena.episodes("eval"))))
+    still = jnp.zeros((4,) + arena.action_spec.shape)
+    later = jax.jit(lambda s: jax.lax.fori_loop(0, 100, lambda _, s: jax.vmap(arena.step)(s, still)[0], s))(states)
+    start, end = np.asarray(states.physics.positions), np.asarray(later.physics.positions)
+    drift = np.linalg.norm(end.mean(1)[:, :2] - start.mean(1)[:, :2], axis=-1)
+    speed = np.linalg.norm(np.asarray(later.physics.velocities), axis=-1).mean(1)
+    assert drift.max() < 0.01, drift  # metres in 1 s
+    assert speed.max() < 0.05, speed  # m/s
+    assert np.asarray(later.physics.collision_overflow).max() == 0
