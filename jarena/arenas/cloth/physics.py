@@ -70,7 +70,7 @@ class ClothState:
       held: int32 (K, G), the particles each picker holds (nearest first), -1 for empty slots.
       held_offsets: float32 (K, G, 3), held particle minus picker position, fixed at the grasp.
       collision_overflow: int32, particles the self-collision search could not read in the last step
-        (cells fuller than its slots, see :func:`.collision.neighbour_list`): 0 unless the cloth is piled
+        (more than its candidate slots, see :func:`.collision.neighbour_list`): 0 unless the cloth is piled
         many layers deep, where some close pairs then go unchecked. Reported in the tasks' metrics.
       mesh: the particle grid (static), for agents that read the state (oracles, planners).
     """

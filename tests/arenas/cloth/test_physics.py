@@ -166,7 +166,7 @@ def test_the_neighbour_list_finds_the_close_pairs_all_pairs_would():
     x = jnp.asarray(rng.uniform(0, 0.1, (300, 3)).astype(np.float32))
     radius = 0.02
     never = lambda i, j: jnp.zeros(i.shape, bool)  # noqa: E731
-    found, overflow = collision.neighbour_list(x, radius, never, slots=12, max_neighbours=64)
+    found, overflow = collision.neighbour_list(x, radius, never, max_neighbours=64)
     found = np.asarray(found)
     assert int(overflow) == 0
     d = np.linalg.norm(np.asarray(x)[:, None] - np.asarray(x)[None], axis=-1)
@@ -175,11 +175,11 @@ def test_the_neighbour_list_finds_the_close_pairs_all_pairs_would():
         assert set(found[i][found[i] >= 0]) == expect
 
 
-def test_the_neighbour_list_counts_the_particles_a_full_cell_held_back():
+def test_the_neighbour_list_counts_the_particles_it_could_not_read():
     x = jnp.full((20, 3), 0.005, jnp.float32).at[:, 0].add(jnp.arange(20) * 1e-4)  # 20 in one cell
     never = lambda i, j: jnp.zeros(i.shape, bool)  # noqa: E731
-    _, overflow = collision.neighbour_list(x, 0.02, never, slots=16)
-    assert int(overflow) == 20 - 16
+    _, overflow = collision.neighbour_list(x, 0.02, never, candidates=16)
+    assert int(overflow) == 20 * (20 - 16)  # each of the 20 misses 4
 
 
 def test_self_collision_pushes_are_equal_and_opposite():
