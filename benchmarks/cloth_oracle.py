@@ -1,15 +1,19 @@
-"""The corner-pulling oracle on crumpled cloths: how often it flattens within a few actions (issue 17's bar).
+"""The cloth oracles against the random agent on the cloth eval episodes (issue 17's oracle bars).
 
-The bar: normalised coverage >= 0.9 within 10 pick-and-place actions on at least 90% of the crumpled eval
-episodes. All episodes run in one batch, one compiled scan over the actions; prints the initial, final and
-best coverage of each episode and the counts reaching 0.9 and 0.99.
+Flattening (crumpled starts): the bar is normalised coverage >= 0.9 within 10 pick-and-place actions on at
+least 90% of the eval episodes; episodes are also grouped in difficulty tiers by their initial coverage
+(:func:`jarena.arenas.cloth.tiers.difficulty_tiers`). Folds (flat starts): the task's success (normalised fold
+distance <= 0.1) and the normalised fold distance reached. Each (task, agent) runs all its episodes in one
+batch, one compiled scan over the actions, and prints one table row.
 
-    python benchmarks/cloth_oracle.py --particles 40 --episodes 64 --actions 10
+    python benchmarks/cloth_oracle.py --tasks flattening --agents oracle,random --episodes 64 --actions 10
+    python benchmarks/cloth_oracle.py --tasks side_fold,diagonal_fold,one_corner_inward --initial flat --actions 4
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import platform
 import time
 
@@ -18,51 +22,92 @@ import jax.numpy as jnp
 import numpy as np
 
 import jarena
+from jarena.arenas.cloth import tiers as tiers_lib
 from jarena_agents import build_agent
 
+ORACLES = {"flattening": "oracle_cloth_flattening"}
+"""Task -> its oracle (every fold: ``oracle_cloth_folding``)."""
 
-def run(particles: int, episodes: int, actions: int, tool: str):
-    arena = jarena.build_arena(f"cloth|domain:square_fabric,initial:crumpled,particles:{particles},"
-                               f"task:flattening,action:{tool},horizon:{actions},eval_episodes:{episodes}")
-    agent = build_agent("oracle_cloth_flattening")
+
+def arena_string(task: str, initial: str, particles: int, actions: int, episodes: int, tool: str) -> str:
+    return (f"cloth|domain:square_fabric,initial:{initial},particles:{particles},task:{task},action:{tool},"
+            f"horizon:{actions},eval_episodes:{episodes}")
+
+
+def run(arena, agent, actions: int, metric: str):
+    """(initial, per-action metric (A, E), per-action success (A, E), seconds) over the arena's eval episodes."""
     ids = jnp.asarray(list(arena.episodes("eval")))
 
     @jax.jit
     def go(ids):
         state, info = jax.vmap(lambda e: arena.reset(episode=e))(ids)
         agent_state = agent.init(jax.random.key(0), arena.spec, ids.shape[0])
+        privileged = agent.privileged
 
         def body(carry, key):
             state, info, agent_state = carry
-            action, agent_state = agent.act(agent_state, info, key, arena.privileged(state))
+            action, agent_state = agent.act(agent_state, info, key, arena.privileged(state) if privileged else None)
             state, info = jax.vmap(arena.step)(state, action)
-            return (state, info, agent_state), info.metrics["normalised_coverage"]
+            return (state, info, agent_state), (info.metrics[metric], info.success)
 
-        _, coverage = jax.lax.scan(body, (state, info, agent_state), jax.random.split(jax.random.key(1), actions))
-        return info.metrics["normalised_coverage"], coverage
+        _, (values, success) = jax.lax.scan(body, (state, info, agent_state),
+                                            jax.random.split(jax.random.key(1), actions))
+        return info.metrics[metric], values, success
 
     start = time.perf_counter()
-    initial, coverage = jax.block_until_ready(go(ids))
-    return np.asarray(initial), np.asarray(coverage), time.perf_counter() - start
+    initial, values, success = jax.block_until_ready(go(ids))
+    return np.asarray(initial), np.asarray(values), np.asarray(success), time.perf_counter() - start
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--tasks", default="flattening", help="comma-separated cloth tasks (default flattening)")
+    p.add_argument("--agents", default="oracle,random", help="comma-separated: oracle (the task's), random, or "
+                                                            "any agent name (default oracle,random)")
+    p.add_argument("--initial", default=None, help="initial state (default: crumpled for flattening, flat for folds)")
     p.add_argument("--particles", type=int, default=40, help="particles along a side (default 40)")
-    p.add_argument("--episodes", type=int, default=64, help="crumpled eval episodes (default 64)")
+    p.add_argument("--episodes", type=int, default=64, help="eval episodes (default 64)")
     p.add_argument("--actions", type=int, default=10, help="pick-and-place actions per episode (default 10)")
     p.add_argument("--tool", default="pixel_pick_and_place(1)", help="action tool (default pixel_pick_and_place(1))")
+    p.add_argument("--config", default="{}", help="JSON config for the oracle (default {})")
     args = p.parse_args(argv)
-    initial, coverage, seconds = run(args.particles, args.episodes, args.actions, args.tool)
-    best = coverage.max(0)
     np.set_printoptions(precision=2, linewidth=160)
     print(f"{jax.devices()[0].device_kind}, jax {jax.__version__}, Python {platform.python_version()}")
-    print("initial normalised coverage:", initial)
-    print("final:", coverage[-1])
-    print("best within the episode:", best)
-    print("| particles | episodes | actions | initial (mean) | final (mean) | reach 0.9 | reach 0.99 | seconds |")
-    print(f"| {args.particles} | {args.episodes} | {args.actions} | {initial.mean():.2f} | {coverage[-1].mean():.2f} | "
-          f"{(best >= 0.9).sum()} ({(best >= 0.9).mean():.0%}) | {(best >= 0.99).sum()} | {seconds:.0f} |")
+    rows = []
+    for task in args.tasks.split(","):
+        folding = task != "flattening"
+        initial_state = args.initial or ("flat" if folding else "crumpled")
+        arena = jarena.build_arena(arena_string(task, initial_state, args.particles, args.actions, args.episodes,
+                                                args.tool))
+        metric = "normalised_fold_distance" if folding else "normalised_coverage"
+        for name in args.agents.split(","):
+            agent_name = ORACLES.get(task, "oracle_cloth_folding") if name == "oracle" else name
+            agent = build_agent(agent_name, json.loads(args.config)) if name == "oracle" else build_agent(agent_name)
+            initial, values, success, seconds = run(arena, agent, args.actions, metric)
+            best = values.min(0) if folding else values.max(0)
+            print(f"{task} {agent_name}: initial {initial}\nfinal {values[-1]}\nbest {best}")
+            row = {"task": task, "initial_state": initial_state, "agent": agent_name, "episodes": len(initial),
+                   "actions": args.actions, "initial": float(initial.mean()), "final": float(values[-1].mean()),
+                   "best": float(best.mean()), "success": int(success.any(0).sum()), "seconds": seconds}
+            if not folding:
+                row.update(reach_90=int((best >= 0.9).sum()), reach_99=int((best >= 0.99).sum()))
+                tier = tiers_lib.difficulty_tiers(initial)
+                row["tiers"] = [{"tier": t, "episodes": int((tier == t).sum()),
+                                 "reach_90": int(((best >= 0.9) & (tier == t)).sum())}
+                                for t in range(len(tiers_lib.TIER_SIZES))]
+            rows.append(row)
+    print("| task | initial state | agent | episodes | actions | initial (mean) | final (mean) | best (mean) | "
+          "success | reach 0.9 | reach 0.99 | seconds |")
+    for r in rows:
+        n = r["episodes"]
+        reach = (f"{r['reach_90']} ({r['reach_90'] / n:.0%}) | {r['reach_99']}" if "reach_90" in r else "- | -")
+        print(f"| {r['task']} | {r['initial_state']} | {r['agent']} | {n} | {r['actions']} | {r['initial']:.2f} | "
+              f"{r['final']:.2f} | {r['best']:.2f} | {r['success']} ({r['success'] / n:.0%}) | {reach} | "
+              f"{r['seconds']:.0f} |")
+    for r in rows:
+        if "tiers" in r:
+            print(f"{r['task']} {r['agent']} by tier (tier: reach 0.9 / episodes):",
+                  ", ".join(f"{t['tier']}: {t['reach_90']}/{t['episodes']}" for t in r["tiers"]))
     return 0
 
 

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jarena.arenas.cloth import camera as camera_lib
 from jarena.arenas.cloth import tools as tools_lib
+from jarena.arenas.cloth.mesh import ClothMesh
 
 
 def frame_of(privileged, agent: str) -> str:
@@ -46,3 +48,10 @@ def covered(positions: jax.Array, particles: jax.Array, spacing: float) -> jax.A
     """bool (H,): whether another layer lies on top of each of ``particles`` (H,) (a pinch would take it)."""
     xy = jnp.linalg.norm(positions[None, :, :2] - positions[particles, None, :2], axis=-1)
     return jnp.any((xy < spacing) & (positions[None, :, 2] > positions[particles, None, 2] + 0.4 * spacing), axis=-1)
+
+
+def handles(mesh: ClothMesh) -> np.ndarray:
+    """int32 (8,): the particles the oracles may pull, the four corners and the four edge midpoints."""
+    r, c = mesh.rows - 1, mesh.cols - 1
+    points = [(0, 0), (0, c), (r, c), (r, 0), (0, c // 2), (r // 2, c), (r, c // 2), (r // 2, 0)]
+    return np.array([mesh.index(i, j) for i, j in points], np.int32)

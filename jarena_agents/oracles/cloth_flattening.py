@@ -21,7 +21,6 @@ import dataclasses
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from jarena.arenas.cloth import coverage as coverage_lib
 from jarena.arenas.cloth.mesh import ClothMesh
@@ -36,13 +35,6 @@ from jarena_agents.registry import register_agent
 class ClothFlatteningOracleConfig:
     reach: float = ranged(0.15, Range(0.0, 0.6))  # metres: the goal's centre stays this close to the origin
     stop_coverage: float = in_unit_interval(0.999)  # normalised coverage at which the oracle stops
-
-
-def _handles(mesh: ClothMesh) -> np.ndarray:
-    """int32: the particles the oracle may pull, the four corners and the four edge midpoints."""
-    r, c = mesh.rows - 1, mesh.cols - 1
-    points = [(0, 0), (0, c), (r, c), (r, 0), (0, c // 2), (r // 2, c), (r, c // 2), (r // 2, 0)]
-    return np.array([mesh.index(i, j) for i, j in points], np.int32)
 
 
 def flat_goal(positions: jax.Array, mesh: ClothMesh, reach: float) -> jax.Array:
@@ -80,7 +72,7 @@ def make_cloth_flattening_oracle(config=None) -> Agent:
 
     def one(positions, mesh: ClothMesh, pickers: int, coordinates: str):
         goal = flat_goal(positions, mesh, cfg.reach)
-        handles = jnp.asarray(_handles(mesh))
+        handles = jnp.asarray(cloth_actions.handles(mesh))
         error = jnp.linalg.norm(positions[handles, :2] - goal[handles], axis=-1)
         # prefer handles on top (a pinch there takes them, not a layer covering them)
         error = jnp.where(cloth_actions.covered(positions, handles, mesh.spacing), error * 0.25, error)

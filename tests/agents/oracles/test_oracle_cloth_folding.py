@@ -1,0 +1,68 @@
+"""The cloth folding oracle: it reads the fold from info.goal, folds flat cloths and leaves spare pickers idle."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jarena
+from jarena.core.agent import AgentArenaMismatch
+from jarena_agents.oracles import cloth_actions
+from jarena_agents.oracles.cloth_folding import flat_pose, floor_layer
+from jarena_agents.registry import build_agent
+
+
+def _arena(task: str, tool: str = "pixel_pick_and_place(1)", initial: str = "flat") -> jarena.Arena:
+    return jarena.build_arena(f"cloth|task:{task},initial:{initial},particles:16,resolution:32,horizon:2,"
+                              f"action:{tool}")
+
+
+@pytest.mark.parametrize("task", ["side_fold", "diagonal_fold", "one_corner_inward"])
+def test_the_flat_pose_under_a_goal_is_the_cloth_it_folds(task):
+    arena = _arena(task)
+    state, info = arena.reset(episode=3)
+    physics = arena.privileged(state).physics
+    goal = info.goal.reshape(-1, 3)
+    floor = np.asarray(floor_layer(goal, physics.mesh))
+    assert 0.5 <= floor.mean() < 1.0  # the folded side is lifted, the rest stays
+    np.testing.assert_allclose(np.asarray(flat_pose(goal, physics.mesh)), np.asarray(physics.positions[:, :2]),
+                               atol=1e-4)
+
+
+def test_the_oracle_folds_a_flat_cloth_closer_than_random():
+    arena = _arena("side_fold")
+    episodes = list(range(4))
+    oracle = jarena.evaluate(build_agent("oracle_cloth_folding"), arena, episodes=episodes)
+    random = jarena.evaluate(build_agent("random"), arena, jax.random.key(0), episodes=episodes)
+    folded = np.asarray(oracle.metrics["normalised_fold_distance"])
+    assert folded.max() < 0.8, folded  # 1: the unfolded cloth
+    assert folded.mean() < np.asarray(random.metrics["normalised_fold_distance"]).mean() - 0.2
+
+
+def _first_action(arena, agent):
+    state, info = jax.vmap(lambda e: arena.reset(episode=e))(jnp.arange(2))
+    agent_state = agent.init(jax.random.key(0), arena.spec, 2)
+    action, agent_state = agent.act(agent_state, info, jax.random.key(1), arena.privileged(state))
+    return np.asarray(action), agent_state
+
+
+def test_spare_pickers_idle_and_the_fold_starts_at_once_on_a_flat_cloth():
+    # one corner moves in one_corner_inward: the second picker has nothing to fold
+    arena = _arena("one_corner_inward", "pixel_pick_and_place(2)")
+    oracle = build_agent("oracle_cloth_folding")
+    action, state = _first_action(arena, oracle)
+    np.testing.assert_array_equal(action[:, 4:], np.tile(cloth_actions.idle(1), (2, 1)))
+    assert not np.array_equal(action[:, :4], action[:, 4:])
+    assert np.asarray(state.folding).all()  # a flat start needs no flattening
+    assert not np.asarray(oracle.reset(state, jnp.array([True, False])).folding)[0]
+
+
+def test_a_crumpled_start_is_flattened_before_folding():
+    arena = _arena("side_fold", initial="crumpled")
+    action, state = _first_action(arena, build_agent("oracle_cloth_folding"))
+    assert not np.asarray(state.folding).any()
+
+
+def test_the_oracle_needs_a_folding_task():
+    with pytest.raises(AgentArenaMismatch, match="folding tasks"):
+        build_agent("oracle_cloth_folding").check_fits(jarena.build_arena("cloth|particles:8,resolution:16"))
