@@ -23,6 +23,7 @@ import numpy as np
 
 import jarena
 from jarena.arenas.cloth import tiers as tiers_lib
+from jarena.runners.loop import act_and_step
 from jarena_agents import build_agent
 
 ORACLES = {"flattening": "oracle_cloth_flattening"}
@@ -42,12 +43,10 @@ def run(arena, agent, actions: int, metric: str):
     def go(ids):
         state, info = jax.vmap(lambda e: arena.reset(episode=e))(ids)
         agent_state = agent.init(jax.random.key(0), arena.spec, ids.shape[0])
-        privileged = agent.privileged
+        params = arena.default_params()
 
         def body(carry, key):
-            state, info, agent_state = carry
-            action, agent_state = agent.act(agent_state, info, key, arena.privileged(state) if privileged else None)
-            state, info = jax.vmap(arena.step)(state, action)
+            state, info, agent_state, _ = act_and_step(agent, arena, *carry, key, params, None, reset_done=False)
             return (state, info, agent_state), (info.metrics[metric], info.success)
 
         _, (values, success) = jax.lax.scan(body, (state, info, agent_state),

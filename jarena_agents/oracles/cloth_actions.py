@@ -55,3 +55,26 @@ def handles(mesh: ClothMesh) -> np.ndarray:
     r, c = mesh.rows - 1, mesh.cols - 1
     points = [(0, 0), (0, c), (r, c), (r, 0), (0, c // 2), (r // 2, c), (r, c // 2), (r // 2, 0)]
     return np.array([mesh.index(i, j) for i, j in points], np.int32)
+
+
+def pull(positions: jax.Array, handles: jax.Array, targets: jax.Array, eligible: jax.Array, pickers: int,
+         spacing: float, coordinates: str) -> tuple[jax.Array, jax.Array]:
+    """The oracles' move: pick the ``pickers`` eligible handles farthest from their targets and place them there.
+
+    Args:
+      positions: float32 (N, 3) particles; handles: int32 (H,) particles that may be pulled; targets: float32
+        (H, 2) where each should lie, x-y metres; eligible: bool (H,); pickers: K; spacing: the mesh's;
+        coordinates: the tool's frame.
+
+    Returns:
+      float32 (4 K,) the action (handles on top ranked first: a covered one counts a quarter of its distance,
+      since a pinch takes the top layer; pickers left without an eligible handle idle), and the largest
+      eligible handle's distance to its target, metres.
+    """
+    error = jnp.linalg.norm(positions[handles, :2] - targets, axis=-1)
+    ranked = jnp.where(covered(positions, handles, spacing), error * 0.25, error)
+    ranked = jnp.where(eligible, ranked, -1.0)
+    rank, worst = jax.lax.top_k(ranked, pickers)
+    action = encode(positions[handles[worst], :2], targets[worst], coordinates).reshape(pickers, 4)
+    action = jnp.where((rank >= 0)[:, None], action, idle(pickers).reshape(pickers, 4))
+    return action.reshape(-1), jnp.max(jnp.where(eligible, error, 0.0))

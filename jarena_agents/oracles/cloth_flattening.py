@@ -73,11 +73,8 @@ def make_cloth_flattening_oracle(config=None) -> Agent:
     def one(positions, mesh: ClothMesh, pickers: int, coordinates: str):
         goal = flat_goal(positions, mesh, cfg.reach)
         handles = jnp.asarray(cloth_actions.handles(mesh))
-        error = jnp.linalg.norm(positions[handles, :2] - goal[handles], axis=-1)
-        # prefer handles on top (a pinch there takes them, not a layer covering them)
-        error = jnp.where(cloth_actions.covered(positions, handles, mesh.spacing), error * 0.25, error)
-        _, worst = jax.lax.top_k(error, pickers)
-        action = cloth_actions.encode(positions[handles[worst], :2], goal[handles[worst]], coordinates)
+        action, _ = cloth_actions.pull(positions, handles, goal[handles], jnp.ones(handles.shape, bool), pickers,
+                                       mesh.spacing, coordinates)
         done = coverage_lib.normalised_coverage(positions, mesh) >= cfg.stop_coverage
         return jnp.where(done, cloth_actions.idle(pickers), action)
 

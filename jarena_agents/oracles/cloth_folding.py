@@ -59,22 +59,8 @@ def flat_pose(goal: jax.Array, mesh: ClothMesh) -> jax.Array:
     cloth lay, and holds at least half of it, so the map is determined), applied to the whole grid.
     """
     material = jnp.concatenate([jnp.asarray(mesh.rest_positions[:, :2]), jnp.ones((mesh.num_particles, 1))], -1)
-    weights = floor_layer(goal, mesh).astype(jnp.float32)[:, None]
-    gram = (material * weights).T @ material
-    cross = (material * weights).T @ goal[:, :2]
-    return material @ jnp.linalg.solve(gram, cross)
-
-
-def _pull(positions, handles, targets, eligible, pickers, spacing, coordinates):
-    """(action, error): the action that moves the ``pickers`` eligible handles farthest from their targets there
-    (those on top first; pickers left without an eligible handle idle), and the largest eligible error."""
-    error = jnp.linalg.norm(positions[handles, :2] - targets, axis=-1)
-    ranked = jnp.where(cloth_actions.covered(positions, handles, spacing), error * 0.25, error)
-    ranked = jnp.where(eligible, ranked, -1.0)
-    rank, worst = jax.lax.top_k(ranked, pickers)
-    action = cloth_actions.encode(positions[handles[worst], :2], targets[worst], coordinates).reshape(pickers, 4)
-    action = jnp.where((rank >= 0)[:, None], action, cloth_actions.idle(pickers).reshape(pickers, 4))
-    return action.reshape(-1), jnp.max(jnp.where(eligible, error, 0.0))
+    weighted = material * floor_layer(goal, mesh).astype(jnp.float32)[:, None]
+    return material @ jnp.linalg.solve(weighted.T @ material, weighted.T @ goal[:, :2])
 
 
 def make_cloth_folding_oracle(config=None) -> Agent:
@@ -92,8 +78,10 @@ def make_cloth_folding_oracle(config=None) -> Agent:
         on_floor = floor_layer(goal, mesh)[handles]
         flat = flat_pose(goal, mesh)[handles]
         folded = goal[handles, :2]
-        flat_action, flat_error = _pull(positions, handles, flat, on_floor, pickers, mesh.spacing, coordinates)
-        fold_action, fold_error = _pull(positions, handles, folded, ~on_floor, pickers, mesh.spacing, coordinates)
+        flat_action, flat_error = cloth_actions.pull(positions, handles, flat, on_floor, pickers, mesh.spacing,
+                                                     coordinates)
+        fold_action, fold_error = cloth_actions.pull(positions, handles, folded, ~on_floor, pickers, mesh.spacing,
+                                                     coordinates)
         flatten = ~folding & (flat_error > cfg.flat_tolerance)
         action = jnp.where(flatten, flat_action, fold_action)
         done = ~flatten & (fold_error <= cfg.stop_distance)
