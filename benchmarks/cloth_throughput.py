@@ -75,10 +75,12 @@ def make(measurement: str, batch: int, args):
             def body(states, t):
                 actions = jax.random.uniform(jax.random.fold_in(key, t), (batch, size), minval=-1.0, maxval=1.0)
                 states, info = jarena.batch_step(arena, states, actions, params, reset_done=reset_done)
-                return states, info.reward.mean()
+                used = sum(jnp.mean(x.astype(jnp.float32)) for x in jax.tree_util.tree_leaves(info.observation))
+                return states, info.reward.mean() + used
 
-            states, rewards = jax.lax.scan(body, states, jnp.arange(args.actions))
-            return states, jax.random.fold_in(key, rewards.shape[0])
+            states, used = jax.lax.scan(body, states, jnp.arange(args.actions))
+            # the key depends on the rewards and observations, so XLA cannot drop their computation
+            return states, jax.random.fold_in(key, jax.lax.bitcast_convert_type(jnp.sum(used), jnp.uint32))
 
         return run, (states, jax.random.key(args.seed + 1)), batch * args.actions
     physics_states = arena.privileged(states).physics

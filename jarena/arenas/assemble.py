@@ -6,7 +6,7 @@ Shared by builders whose arenas are ``domain x task`` (``classic``, and suites s
 from __future__ import annotations
 
 import inspect
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from jarena.arenas.domain import Domain
@@ -15,18 +15,21 @@ from jarena.building.grammar import ArenaStringError, Call
 from jarena.building.registry import unknown_choice
 from jarena.core.arena import Arena
 from jarena.core.chain import chain
+from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.resets import reset_strategy
 from jarena.tasks.time_limit import time_limit as time_limit_task
 
 
 def assemble(builder: str, domains: Mapping[str, Domain], domain: str, task: Any = None, action: Any = None,
              time_limit: int | None = None, wrap: Any = None, eval_episodes: int | None = None,
-             val_episodes: int | None = None, auto_reset: str | None = None) -> Arena:
+             val_episodes: int | None = None, auto_reset: str | None = None,
+             sensor: Callable[[Sensor, Dynamics], Sensor] | None = None) -> Arena:
     """Builds ``domain``'s arena for ``task`` (a name or a call with keyword arguments).
 
     The task chain is ``chain(base task, time_limit, *wrap)``; the tool chain is the domain's default
     tool, then ``action`` (a tool, call or list of them) in front of it. ``auto_reset`` overrides the
-    domain's reset strategy (one of ``jarena.core.resets.RESET_STRATEGIES``).
+    domain's reset strategy (one of ``jarena.core.resets.RESET_STRATEGIES``). ``sensor``, if given, maps the
+    task's sensor and the dynamics to the arena's sensor (e.g. adds cameras).
     """
     if domain not in domains:
         raise ArenaStringError(unknown_choice(f"{builder} domain", domain, sorted(domains)))
@@ -71,7 +74,10 @@ def assemble(builder: str, domains: Mapping[str, Domain], domain: str, task: Any
         extra["num_eval_episodes"] = int(eval_episodes)
     if val_episodes is not None:
         extra["num_val_episodes"] = int(val_episodes)
-    arena = Arena(dynamics=dynamics, sensor=dom.sensor_for(task_call.name), task=chain(*tasks),
+    observer = dom.sensor_for(task_call.name)
+    if sensor is not None:
+        observer = sensor(observer, dynamics)
+    arena = Arena(dynamics=dynamics, sensor=observer, task=chain(*tasks),
                   tool=chain(*tools) if tools else Arena.tool, name=f"{builder}-{domain}-{task_call.name}",
                   auto_reset=dom.auto_reset if auto_reset is None else auto_reset, **extra)
     try:

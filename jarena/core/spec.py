@@ -340,3 +340,12 @@ def spec_from_value(x: Any) -> Spec:
         info = np.iinfo(x.dtype)
         return Box(info.min, info.max, x.shape, x.dtype)
     return Box(0, 1, x.shape, x.dtype)
+
+
+def image_spec(height: int, width: int, channels: int = 3) -> Box:
+    """The spec of a camera image: ``Box(0, 255, (height, width, channels), uint8)``, shared by every camera
+    sensor (the cloth's top-down camera, MJX arenas' cameras) so that image agents fit all of them."""
+    for name, value in (("height", height), ("width", width), ("channels", channels)):
+        if not isinstance(value, int | np.integer) or isinstance(value, bool) or value < 1:
+            raise ValueError(f"image {name} must be a positive integer, got {value!r}")
+    return Box(0, 255, (int(height), int(width), int(channels)), jnp.uint8)

@@ -40,7 +40,7 @@ from jarena.core.arena import Arena
 from jarena.core.chain import chain
 from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.resets import reset_strategy
-from jarena.core.spec import Box, Dict
+from jarena.core.spec import Box, Dict, image_spec
 from jarena.tasks.time_limit import time_limit
 
 DOMAINS: dict[str, tuple[float, float]] = {"square_fabric": (0.4, 0.4), "rectangular_fabric": (0.5, 0.3)}
@@ -92,7 +92,7 @@ def camera_sensor(mesh: ClothMesh, resolution: int) -> Sensor:
         image = camera_lib.render(physics.positions, mesh, params, r)
         return {"rgb": image["rgb"], "depth": image["depth"], "mask": image["mask"].astype(jnp.uint8)}
 
-    spec = Dict(rgb=Box(0, 255, (r, r, 3), jnp.uint8), depth=Box(0.0, height, (r, r), jnp.float32),
+    spec = Dict(rgb=image_spec(r, r), depth=Box(0.0, height, (r, r), jnp.float32),
                 mask=Box(0, 1, (r, r), jnp.uint8))
     return Sensor(observe=observe, spec=spec, name=f"top_down_camera({r})",
                   default_params=lambda: jax.tree_util.tree_map(jnp.float32, camera_lib.CameraParams()))

@@ -1,7 +1,8 @@
 """The DeepMind Control Suite on MJX, with each domain's dynamics shared by its tasks.
 
 Builder ``dmc``: ``dmc|domain:<domain>,task:<task>[,action:<tools>][,time_limit:N][,wrap:<tasks>]
-[,auto_reset:select|lazy|repeat][,<simulation options>]``.
+[,auto_reset:select|lazy|repeat][,<simulation options>][,pixels:N[,depth:true][,segmentation:true]
+[,state:false][,camera:<name or id>]]``.
 Observations, rewards, initial states and episode lengths follow ``dm_control.suite``; tests compare
 them with dm_control's own task code on the same physics states.
 """
@@ -16,6 +17,7 @@ from typing import Any
 from jarena.arenas.assemble import assemble
 from jarena.arenas.domain import Domain
 from jarena.building.builder import register_arena_builder
+from jarena.building.grammar import ArenaStringError
 from jarena.core.arena import Arena
 
 #: Domains and their tasks. Static, so that listing arenas does not import MuJoCo; each domain's
@@ -62,7 +64,9 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
           eval_episodes: int | None = None, val_episodes: int | None = None, iterations: int | None = None,
           ls_iterations: int | None = None, integrator: str | None = None, eulerdamp: bool | None = None,
           timestep: float | None = None, max_contact_points: int | None = None, max_geom_pairs: int | None = None,
-          touch_sensors: bool | None = None, auto_reset: str | None = None) -> Arena:
+          touch_sensors: bool | None = None, auto_reset: str | None = None, pixels: Any = None,
+          depth: bool | None = None, segmentation: bool | None = None, state: bool | None = None,
+          camera: Any = None) -> Arena:
     """Builds a DeepMind Control Suite arena on MJX.
 
     Args:
@@ -81,6 +85,13 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
       auto_reset: how finished episodes restart under auto-reset: ``select``, ``lazy`` or ``repeat``
         (each arena replays its first initial state, as Brax and Playground; fastest); default: the
         domain's (see ``jarena.core.resets``).
+      pixels: camera images rendered on device (:mod:`jarena.arenas.mjx.camera`): ``pixels:64`` (or
+        ``[height,width]``) adds ``observation["pixels"]`` uint8 (64, 64, 3) from camera 0, the camera
+        dm_control's pixel wrapper uses.
+      depth, segmentation: with ``pixels``, also observe ``depth`` (float32 (H, W), metres along the camera
+        axis) and ``segmentation`` (int32 (H, W, 2): object id and ``mjtObj`` type per pixel).
+      state: with ``pixels``, ``false`` drops the state observation (images only); default ``true``.
+      camera: with ``pixels``, the model camera's name or id (default 0).
     """
     if domain in UNSUPPORTED:
         raise NotImplementedError(f"dmc domain {domain!r} cannot run on MJX: {UNSUPPORTED[domain]}")
@@ -97,7 +108,36 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
         optioned = {name: common.with_options(dom.dynamics_for(name), *options) for name in dom.tasks}
         domains = {domain: dataclasses.replace(dom, task_dynamics={n: (lambda d=d: d) for n, d in optioned.items()})}
     return assemble("dmc", domains, domain, task, action, time_limit, wrap, eval_episodes, val_episodes,
-                    auto_reset=auto_reset)
+                    auto_reset=auto_reset, sensor=_camera_options(pixels, depth, segmentation, state, camera))
+
+
+def _camera_options(pixels, depth, segmentation, state, camera):
+    """A sensor transform adding camera images, or ``None`` without ``pixels`` (then the other options are
+    errors)."""
+    if pixels is None:
+        given = [n for n, v in (("depth", depth), ("segmentation", segmentation), ("state", state),
+                                ("camera", camera)) if v is not None]
+        if given:
+            raise ArenaStringError(f"{', '.join(given)} need pixels (e.g. pixels:64)")
+        return None
+    for name, value in (("depth", depth), ("segmentation", segmentation), ("state", state)):
+        if value is not None and not isinstance(value, bool):
+            raise ArenaStringError(f"{name} must be true or false, got {value!r}")
+    from jarena.arenas.mjx.dynamics import model_of
+    from jarena.arenas.mjx.pixels import image_size, pixel_sensor
+    try:
+        size = image_size(pixels)
+    except ValueError as e:
+        raise ArenaStringError(str(e)) from None
+
+    def add_camera(sensor, dynamics):
+        try:
+            return pixel_sensor(model_of(dynamics), sensor if state is not False else None, size,
+                                0 if camera is None else camera, depth=bool(depth), segmentation=bool(segmentation))
+        except ValueError as e:
+            raise ArenaStringError(str(e)) from None
+
+    return add_camera
 
 
 def variants() -> list[tuple[str, tuple[str, ...]]]:

@@ -149,6 +149,15 @@ def mjx_dynamics(model: mujoco.MjModel, substeps: int = 1, name: str = "mjx",
                     after_reset=after_reset, finite=is_finite)
 
 
+def model_of(dynamics: Dynamics) -> mujoco.MjModel:
+    """The ``mujoco.MjModel`` that MJX ``dynamics`` were built from (kept by its host renderer)."""
+    model = getattr(dynamics.render, "model", None)
+    if not isinstance(model, mujoco.MjModel):
+        raise TypeError(f"dynamics {dynamics.name!r} do not come from a MuJoCo model (built by mjx_dynamics "
+                        "with render=renderer_for(model))")
+    return model
+
+
 def is_finite(data: mjx.Data) -> jax.Array:
     """bool: ``qpos``, ``qvel`` and ``act`` are finite. A NaN or infinity anywhere in a step (control,
     forces, constraint solve, ``qacc``) reaches them through the integrator within that step, so these few
