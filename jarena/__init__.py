@@ -10,7 +10,7 @@ composable transforms; everything builds from a string::
 
 from jarena import _headless  # noqa: F401, I001  (first: picks MuJoCo's headless GL before mujoco is imported)
 from jarena import arenas as _arenas  # noqa: F401  (registers the built-in builders)
-from jarena import data, tasks, testing, tools
+from jarena import data, sensors, tasks, testing, tools
 from jarena.building import (
     ArenaStringError,
     build_arena,
@@ -26,7 +26,7 @@ from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.batching import auto_reset, batch_reset, batch_step
 from jarena.core.chain import chain
-from jarena.core.dynamics import Dynamics, Sensor
+from jarena.core.dynamics import Dynamics, Sensor, SensorMemory
 from jarena.core.spec import Box, Discrete, SpecError
 from jarena.core.task import Task
 from jarena.core.tool import ActionTool
@@ -39,9 +39,10 @@ __version__ = "0.1.0"
 
 __all__ = [
     "ActionTool", "Agent", "Arena", "ArenaParams", "ArenaSpec", "ArenaState", "ArenaStringError", "Box",
-    "Discrete", "Dynamics", "EvalResult", "Final", "Recording", "Info", "Outcome", "Sensor", "SpecError", "Task",
+    "Discrete", "Dynamics", "EvalResult", "Final", "Recording", "Info", "Outcome", "Sensor", "SensorMemory",
+    "SpecError", "Task",
     "TrainResult", "Trajectory", "TrajectoryDataset", "Transition", "auto_reset", "batch_reset", "batch_step",
     "build_arena", "chain", "collect", "data", "evaluate", "list_arenas", "make_buffer", "parse_arena_string",
     "perform_parallel", "record_video", "register_arena_builder", "register_task", "register_tool", "retrieve_config",
-    "run", "spec", "tasks", "testing", "tools", "train_and_evaluate", "validate",
+    "run", "sensors", "spec", "tasks", "testing", "tools", "train_and_evaluate", "validate",
 ]

@@ -187,7 +187,8 @@ class Arena:
         tool_state = self.tool.reset(key_tool, params.tool, self.dynamics.control_spec)
         state = ArenaState(physics=physics, task=task_state, tool=tool_state, step=jnp.zeros((), jnp.int32),
                            episode=episode, rng=KeyWords.pack(rng))
-        info = self._info(state, outcome, params)
+        state, observation = self._observe(state, params, first=True)
+        info = self._info(state, observation, outcome, params)
         if reset_strategy(self.auto_reset).keeps_start:
             state = state.replace(start=(state, info))
         return state, info
@@ -234,12 +235,22 @@ class Arena:
             state.tool, action, (state.physics, state.task), low_level_step, params.tool,
             self.dynamics.control_spec)
         state = state.replace(physics=physics, task=task_state, tool=tool_state, step=state.step + 1)
-        return state, self._info(state, outcome, params, invalid)
+        state, observation = self._observe(state, params, first=False)
+        return state, self._info(state, observation, outcome, params, invalid)
 
-    def _info(self, state: ArenaState, outcome: Outcome, params: ArenaParams,
-              invalid_action: jax.Array | None = None) -> Info:
-        """The info of ``state``; after a step (``invalid_action`` given) with its fault applied."""
+    def _observe(self, state: ArenaState, params: ArenaParams, first: bool) -> tuple[ArenaState, PyTree]:
+        """The observation the agent sees of ``state``, and ``state`` with the sensor's memory updated."""
         observation = self.sensor.observe(state.physics, params.sensor)
+        memory = self.sensor.memory
+        if memory is None:
+            return state, observation
+        remembered, observation = memory.start(observation) if first else memory.advance(state.sensor, observation)
+        return state.replace(sensor=remembered), observation
+
+    def _info(self, state: ArenaState, observation: PyTree, outcome: Outcome, params: ArenaParams,
+              invalid_action: jax.Array | None = None) -> Info:
+        """The info of ``state`` with ``observation``; after a step (``invalid_action`` given) with its fault
+        applied."""
         reward = jnp.asarray(outcome.reward, jnp.float32)
         terminated = jnp.asarray(outcome.terminated, bool)
         success = jnp.asarray(outcome.success, bool)

@@ -62,18 +62,36 @@ class Dynamics:
 
 
 @dataclasses.dataclass(frozen=True)
+class SensorMemory:
+    """What a sensor remembers from one agent step to the next (e.g. the last frames of a frame stack).
+
+    Attributes:
+      start: ``(observation) -> (memory, observation)`` at reset, from the first observation of an episode.
+      advance: ``(memory, observation) -> (memory, observation)`` after each agent step.
+    Both take the sensor's ``observe`` output and return what the agent sees; ``memory`` is a pytree of
+    arrays whose shapes do not change, kept in ``ArenaState.sensor``.
+    """
+
+    start: Callable[[dict[str, jax.Array]], tuple[PyTree, dict[str, jax.Array]]]
+    advance: Callable[[PyTree, dict[str, jax.Array]], tuple[PyTree, dict[str, jax.Array]]]
+
+
+@dataclasses.dataclass(frozen=True)
 class Sensor:
     """What the agent observes of the physics.
 
     Attributes:
       observe: ``(physics, params) -> dict[str, array]``.
-      spec: a :class:`~jarena.core.spec.Dict` spec of the observation with real bounds, or ``None``
-        to derive an unbounded spec from the observation's shapes.
+      spec: a :class:`~jarena.core.spec.Dict` spec of the observation the agent sees (after ``memory``)
+        with real bounds, or ``None`` to derive an unbounded spec from the observation's shapes.
       default_params: ``() -> params`` (noise scales, camera settings...).
       name: a short name for messages.
+      memory: optional :class:`SensorMemory` for observations that depend on earlier steps (frame stacks);
+        it runs once per agent step, after ``observe``.
     """
 
     observe: Callable[[PyTree, PyTree], dict[str, jax.Array]]
     spec: Spec | None = None
     default_params: Callable[[], PyTree] = _no_params
     name: str = "sensor"
+    memory: SensorMemory | None = None

@@ -172,6 +172,7 @@ class ArenaState:
         auto-resets.
       start: ``None``, or with ``Arena.auto_reset == "repeat"`` the ``(state, info)`` this arena's first
         episode started from (its own ``start`` ``None``), restored when an episode ends.
+      sensor: the sensor's memory (``Sensor.memory``, e.g. a frame stack's last frames), ``()`` without one.
     """
 
     physics: PyTree
@@ -181,6 +182,7 @@ class ArenaState:
     episode: Array
     rng: KeyWords
     start: PyTree = None
+    sensor: PyTree = ()
 
 
 @struct.dataclass

@@ -2,7 +2,7 @@
 
 Builder ``dmc``: ``dmc|domain:<domain>,task:<task>[,action:<tools>][,time_limit:N][,wrap:<tasks>]
 [,auto_reset:select|lazy|repeat][,<simulation options>][,pixels:N[,depth:true][,segmentation:true]
-[,state:false][,camera:<name or id>]]``.
+[,state:false][,camera:<name or id>][,frame_stack:K]]``.
 Observations, rewards, initial states and episode lengths follow ``dm_control.suite``; tests compare
 them with dm_control's own task code on the same physics states.
 """
@@ -66,7 +66,7 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
           timestep: float | None = None, max_contact_points: int | None = None, max_geom_pairs: int | None = None,
           touch_sensors: bool | None = None, auto_reset: str | None = None, pixels: Any = None,
           depth: bool | None = None, segmentation: bool | None = None, state: bool | None = None,
-          camera: Any = None) -> Arena:
+          camera: Any = None, frame_stack: int | None = None) -> Arena:
     """Builds a DeepMind Control Suite arena on MJX.
 
     Args:
@@ -92,6 +92,8 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
         axis) and ``segmentation`` (int32 (H, W, 2): object id and ``mjtObj`` type per pixel).
       state: with ``pixels``, ``false`` drops the state observation (images only); default ``true``.
       camera: with ``pixels``, the model camera's name or id (default 0).
+      frame_stack: with ``pixels``, the last K images (and depth maps) instead of the last one:
+        ``pixels`` (H, W, 3 K), oldest first (:func:`jarena.sensors.frame_stack`).
     """
     if domain in UNSUPPORTED:
         raise NotImplementedError(f"dmc domain {domain!r} cannot run on MJX: {UNSUPPORTED[domain]}")
@@ -108,15 +110,16 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
         optioned = {name: common.with_options(dom.dynamics_for(name), *options) for name in dom.tasks}
         domains = {domain: dataclasses.replace(dom, task_dynamics={n: (lambda d=d: d) for n, d in optioned.items()})}
     return assemble("dmc", domains, domain, task, action, time_limit, wrap, eval_episodes, val_episodes,
-                    auto_reset=auto_reset, sensor=_camera_options(pixels, depth, segmentation, state, camera))
+                    auto_reset=auto_reset,
+                    sensor=_camera_options(pixels, depth, segmentation, state, camera, frame_stack))
 
 
-def _camera_options(pixels, depth, segmentation, state, camera):
+def _camera_options(pixels, depth, segmentation, state, camera, frames):
     """A sensor transform adding camera images, or ``None`` without ``pixels`` (then the other options are
     errors)."""
     if pixels is None:
         given = [n for n, v in (("depth", depth), ("segmentation", segmentation), ("state", state),
-                                ("camera", camera)) if v is not None]
+                                ("camera", camera), ("frame_stack", frames)) if v is not None]
         if given:
             raise ArenaStringError(f"{', '.join(given)} need pixels (e.g. pixels:64)")
         return None
@@ -130,10 +133,15 @@ def _camera_options(pixels, depth, segmentation, state, camera):
     except ValueError as e:
         raise ArenaStringError(str(e)) from None
 
+    from jarena.sensors import frame_stack
+
     def add_camera(sensor, dynamics):
         try:
-            return pixel_sensor(model_of(dynamics), sensor if state is not False else None, size,
-                                0 if camera is None else camera, depth=bool(depth), segmentation=bool(segmentation))
+            sensor = pixel_sensor(model_of(dynamics), sensor if state is not False else None, size,
+                                  0 if camera is None else camera, depth=bool(depth), segmentation=bool(segmentation))
+            if frames is not None:
+                sensor = frame_stack(sensor, frames, ("pixels", "depth") if depth else ("pixels",))
+            return sensor
         except ValueError as e:
             raise ArenaStringError(str(e)) from None
 
