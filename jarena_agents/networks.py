@@ -28,6 +28,48 @@ def flatten_observation(info: Info, batch_dims: int = 1) -> jax.Array:
     return jnp.concatenate([x.reshape(batch + (-1,)).astype(jnp.float32) for x in leaves], axis=-1)
 
 
+def image_keys(spec: ArenaSpec) -> tuple[str, ...]:
+    """Observation keys that hold images: uint8 ``Box`` entries of shape (H, W, C), sorted."""
+    spaces = getattr(spec.observation, "spaces", {})
+    return tuple(sorted(k for k, s in spaces.items()
+                        if isinstance(s, Box) and s.dtype == np.uint8 and len(s.shape) == 3))
+
+
+def vector_size(spec: ArenaSpec, images: tuple[str, ...]) -> int:
+    """Length of :func:`split_observation`'s vector: every observation leaf but ``images``, and the goal."""
+    zeros = {k: v for k, v in spec.observation.zeros().items() if k not in images}
+    return int(sum(np.prod(x.shape, dtype=int) for x in jax.tree_util.tree_leaves(zeros))) + spec.goal_dim
+
+
+def split_observation(info: Info, images: tuple[str, ...], batch_dims: int = 1) -> dict:
+    """``{"vector": float32 (*batch, D), "images": {key: uint8 (*batch, H, W, C)}}``: the image keys apart, every
+    other leaf (sorted by key) and the goal flattened as :func:`flatten_observation` does."""
+    rest = {k: v for k, v in info.observation.items() if k not in images}
+    vector = flatten_observation(info.replace(observation=rest), batch_dims)
+    return {"vector": vector, "images": {k: info.observation[k] for k in images}}
+
+
+class PixelEncoder(nn.Module):
+    """A convolutional torso for uint8 images: each key's (*, H, W, C) image scaled to [-0.5, 0.5], through
+    ``layers`` of ``(features, kernel, stride)`` ReLU convolutions ('SAME' padding; default: the Nature DQN's),
+    flattened; the keys' features concatenated (sorted by key)."""
+
+    layers: Sequence[tuple[int, int, int]] = ((32, 8, 4), (64, 4, 2), (64, 3, 1))
+
+    @nn.compact
+    def __call__(self, images: dict) -> jax.Array:
+        out = []
+        for key in sorted(images):
+            x = images[key]
+            batch = x.shape[:-3]
+            x = x.reshape((-1,) + x.shape[-3:]).astype(jnp.float32) / 255.0 - 0.5
+            for i, (features, kernel, stride) in enumerate(self.layers):
+                x = nn.relu(nn.Conv(features, (kernel, kernel), (stride, stride), padding="SAME",
+                                    kernel_init=nn.initializers.orthogonal(np.sqrt(2)), name=f"{key}_conv{i}")(x))
+            out.append(x.reshape(batch + (-1,)))
+        return jnp.concatenate(out, axis=-1)
+
+
 #: Hidden-layer activations by config name (Brax's PPO networks use swish).
 ACTIVATIONS = {"tanh": nn.tanh, "relu": nn.relu, "swish": nn.swish}
 
@@ -121,6 +163,8 @@ class ActorCritic(nn.Module):
     learned state-independent log standard deviation) or, with ``box_policy="tanh_normal"``, a
     :class:`TanhNormal` (mean and ``softplus(.) + min_std`` from the MLP, as Brax's PPO).
     ``value_hidden`` sizes the value MLP (default: ``hidden``); ``activation`` names both MLPs'.
+    Input: a float (*, D) vector, or :func:`split_observation`'s dict, whose images go through a shared
+    :class:`PixelEncoder` (``cnn`` layers) and join the vector before both MLPs.
     """
 
     action_spec: Spec
@@ -129,9 +173,12 @@ class ActorCritic(nn.Module):
     box_policy: str = "gaussian"
     min_std: float = 1e-3
     activation: str = "tanh"
+    cnn: Sequence[tuple[int, int, int]] = PixelEncoder.layers
 
     @nn.compact
     def __call__(self, x):
+        if isinstance(x, dict):  # split_observation's {"vector", "images"}: one shared CNN torso for the images
+            x = jnp.concatenate([x["vector"], PixelEncoder(tuple(self.cnn), name="encoder")(x["images"])], axis=-1)
         value_hidden = self.hidden if self.value_hidden is None else self.value_hidden
         value = MLP(value_hidden, 1, output_scale=1.0, activation=self.activation, name="critic")(x)[..., 0]
         if isinstance(self.action_spec, Discrete):

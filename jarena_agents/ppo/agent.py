@@ -54,7 +54,10 @@ class PPOConfig:
     value_hidden: tuple | None = None  # the value MLP's layers (default: ``hidden``)
     box_policy: str = "gaussian"  # or "tanh_normal" (Brax's): see networks.ActorCritic
     activation: str = "tanh"  # hidden layers: tanh, relu or swish (Brax's)
-    normalize_observations: bool = False
+    # convolutions (features, kernel, stride) for image observations (uint8 (H, W, C) keys, e.g. pixels:64);
+    # the Nature DQN's by default; unused on arenas without images
+    cnn: tuple = ((32, 8, 4), (64, 4, 2), (64, 3, 1))
+    normalize_observations: bool = False  # normalises the vector observations (never the images)
     reward_scale: float = positive(1.0)
     # None: GAE over the whole rollout with the acting parameters, then transitions are shuffled
     # (PureJaxRL). An int U: the rollout is cut into U-step segments, segments are shuffled, and each
@@ -117,7 +120,15 @@ def make_ppo(config=None) -> Agent:
         networks.check_supported(spec.action, "ppo")
         return networks.ActorCritic(spec.action, tuple(cfg.hidden),
                                     None if cfg.value_hidden is None else tuple(cfg.value_hidden), cfg.box_policy,
-                                    activation=cfg.activation)
+                                    activation=cfg.activation, cnn=tuple(tuple(layer) for layer in cfg.cnn))
+
+    def observe(spec: ArenaSpec, info: Info):
+        """What the network reads: the flat observation vector, or with image keys the vector and the images."""
+        images = networks.image_keys(spec)
+        return networks.split_observation(info, images) if images else networks.flatten_observation(info)
+
+    def vector_of(observation):
+        return observation["vector"] if isinstance(observation, dict) else observation
 
     def optimizer():
         lr = cfg.learning_rate
@@ -128,16 +139,24 @@ def make_ppo(config=None) -> Agent:
 
     def forward(spec, params, stats, observation):
         if cfg.normalize_observations:
-            observation = normalizer.normalize(stats, observation)
+            if isinstance(observation, dict):
+                observation = dict(observation, vector=normalizer.normalize(stats, observation["vector"]))
+            else:
+                observation = normalizer.normalize(stats, observation)
         return network(spec).apply(params, observation)
 
     def init(key, spec: ArenaSpec, num_arenas: int) -> PPOState:
-        dim = networks.observation_size(spec)
-        params = network(spec).init(key, jnp.zeros((1, dim), jnp.float32))
+        images = networks.image_keys(spec)
+        dim = networks.vector_size(spec, images)
+        example = jnp.zeros((1, dim), jnp.float32)
+        if images:
+            example = {"vector": example,
+                       "images": {k: spec.observation[k].zeros()[None] for k in images}}
+        params = network(spec).init(key, example)
         return PPOState(params=params, observation_stats=normalizer.init(dim), spec=spec)
 
     def act(state: PPOState, info: Info, key, privileged=None):
-        policy, _ = forward(state.spec, state.params, state.observation_stats, networks.flatten_observation(info))
+        policy, _ = forward(state.spec, state.params, state.observation_stats, observe(state.spec, info))
         raw, _, _ = networks.sample_action(state.spec.action, policy, key, state.deterministic)
         return networks.to_env_action(state.spec.action, raw, policy), state
 
@@ -161,13 +180,13 @@ def make_ppo(config=None) -> Agent:
 
         def rollout_step(carry, key):
             arena_state, info, episode_return = carry
-            observation = networks.flatten_observation(info)
+            observation = observe(spec, info)
             policy_out, value = forward(spec, ts.params, ts.observation_stats, observation)
             raw, logp, _ = networks.sample_action(spec.action, policy_out, key, False)
             action = networks.to_env_action(spec.action, raw, policy_out)
             arena_state, next_info = batch_step(arena, arena_state, action, arena_params)
-            final_observation = networks.flatten_observation(
-                next_info.replace(observation=next_info.final.observation, goal=next_info.final.goal))
+            final_observation = observe(
+                spec, next_info.replace(observation=next_info.final.observation, goal=next_info.final.goal))
             episode_return = episode_return + next_info.reward
             finished = next_info.done
             record = dict(observation=observation, raw_action=raw, log_prob=logp, value=value,
@@ -183,7 +202,7 @@ def make_ppo(config=None) -> Agent:
             jax.random.split(rollout_key, cfg.rollout_length))
         stats = ts.observation_stats
         if cfg.normalize_observations:
-            stats = normalizer.update(stats, batch["observation"])
+            stats = normalizer.update(stats, vector_of(batch["observation"]))
 
         def advantages_of(params, stats, segment):
             """GAE over a (T, ...) time-major segment with the given value network."""
