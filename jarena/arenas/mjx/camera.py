@@ -2,8 +2,9 @@
 
 :func:`render` draws what ``mujoco.Renderer`` draws from a model camera with its default options (geoms
 and sites of groups 0-2 with a visible colour) and returns, per pixel, the colour, the depth and the object
-seen. Geometry follows MuJoCo's renderer (same camera pose, field of view and pixel centres; depth is the
-distance along the camera's axis, ``far`` where nothing is hit); appearance is an approximation: Lambert
+seen. Geometry follows MuJoCo's renderer (same camera pose, field of view and pixel centres, front faces only,
+surfaces nearer than its near plane clipped; depth is the distance along the camera's axis, ``far`` where
+nothing is hit); appearance is an approximation: Lambert
 and Blinn-Phong shading from the model's lights and headlight, geom and material colours, the floor's 2-D
 texture, and a sky that shades from the skybox's darkest to its brightest colour with the ray's elevation.
 No shadows, reflections or fog.
@@ -81,6 +82,7 @@ class Scene:
     headlight: tuple[np.ndarray, np.ndarray, np.ndarray]  # ambient, diffuse, specular (3,) each
     sky: tuple[np.ndarray, np.ndarray]  # (bottom, top) rgb in [0, 1]
     far: float  # metres: depth of background pixels (MuJoCo's zfar * extent)
+    near: float  # metres: surfaces nearer the camera than this are clipped (MuJoCo's znear * extent)
 
     @property
     def num_objects(self) -> int:
@@ -215,6 +217,7 @@ def scene_of(model: mujoco.MjModel) -> Scene:
         if model.vis.headlight.active else (np.zeros(3, f32),) * 3,
         sky=_sky(model),
         far=float(model.vis.map.zfar * model.stat.extent),
+        near=float(model.vis.map.znear * model.stat.extent),
     )
 
 
@@ -305,6 +308,7 @@ def render(scene: Scene, data, camera: int, height: int, width: int) -> Frame:
         hits.append(raycast.INTERSECT[kind](o_local[None], d_local, jnp.asarray(scene.size[start:stop])[None]))
     if hits:
         t_all = jnp.concatenate(hits, axis=-1)  # (P, n)
+        t_all = jnp.where(t_all < scene.near, jnp.inf, t_all)  # the near plane clips, as OpenGL's frustum
         nearest = jnp.argmin(t_all, axis=-1)
         t = jnp.take_along_axis(t_all, nearest[:, None], axis=-1)[:, 0]
     else:

@@ -5,7 +5,9 @@ Every function takes ray origins ``o`` and directions ``d`` (float arrays broadc
 ``(r, _, _)``, capsule and cylinder ``(r, half_length, _)``, ellipsoid and box ``(a, b, c)`` half-extents,
 plane ``(half_x, half_y, _)`` with 0 meaning unbounded), broadcasting to the rays' leading shape. They
 return the ray parameter ``t`` of the nearest hit in front of the origin (``t > 0``; the hit point is
-``o + t d``), or ``+inf`` where the ray misses. Pure ``jnp``: ``jit``, ``vmap`` and broadcasting work.
+``o + t d``), or ``+inf`` where the ray misses. Only front faces count, as in MuJoCo's renderer, which culls
+back faces: a ray that starts inside a primitive does not see it (a camera inside a head sees out of it).
+Pure ``jnp``: ``jit``, ``vmap`` and broadcasting work.
 
 Conventions follow MuJoCo: capsules and cylinders lie along the local z axis, planes are the local
 ``z = 0`` plane seen from ``z > 0`` (their front, where the normal points), boxes and ellipsoids are
@@ -21,10 +23,9 @@ INF = jnp.inf
 _EPS = 1e-12
 
 
-def _first_positive(t_near, t_far, hit):
-    """The smaller of two roots in front of the origin (``t > 0``), ``inf`` where neither is or ``~hit``."""
-    t = jnp.where(t_near > 0, t_near, t_far)
-    return jnp.where(hit & (t > 0), t, INF)
+def _entry(t_near, hit):
+    """``t_near``, where the ray enters the primitive in front of its origin, else ``inf``."""
+    return jnp.where(hit & (t_near > 0), t_near, INF)
 
 
 def _quadratic(a, b, c):
@@ -43,8 +44,8 @@ def _dot(u, v):
 def sphere(o, d, size):
     """Sphere of radius ``size[..., 0]`` around the origin."""
     r = size[..., 0]
-    t0, t1, real = _quadratic(_dot(d, d), _dot(o, d), _dot(o, o) - r * r)
-    return _first_positive(t0, t1, real)
+    t0, _, real = _quadratic(_dot(d, d), _dot(o, d), _dot(o, o) - r * r)
+    return _entry(t0, real)
 
 
 def ellipsoid(o, d, size):
@@ -58,13 +59,9 @@ def _side(o, d, r, h):
     a = d[..., 0] ** 2 + d[..., 1] ** 2
     b = o[..., 0] * d[..., 0] + o[..., 1] * d[..., 1]
     c = o[..., 0] ** 2 + o[..., 1] ** 2 - r * r
-    t0, t1, real = _quadratic(a, b, c)
-    real = real & (a > _EPS)
-
-    def within(t):
-        return real & (t > 0) & (jnp.abs(o[..., 2] + t * d[..., 2]) <= h)
-
-    return jnp.where(within(t0), t0, jnp.where(within(t1), t1, INF))
+    t0, _, real = _quadratic(a, b, c)
+    within = real & (a > _EPS) & (t0 > 0) & (jnp.abs(o[..., 2] + t0 * d[..., 2]) <= h)
+    return jnp.where(within, t0, INF)
 
 
 def capsule(o, d, size):
@@ -85,10 +82,11 @@ def cylinder(o, d, size):
     r, h = size[..., 0], size[..., 1]
     dz = _safe(d[..., 2])
     best = _side(o, d, r, h)
-    for sign in (-1.0, 1.0):
+    for sign in (-1.0, 1.0):  # a cap faces out: the ray enters through it moving against its normal
         t = (sign * h - o[..., 2]) / dz
         x, y = o[..., 0] + t * d[..., 0], o[..., 1] + t * d[..., 1]
-        best = jnp.minimum(best, jnp.where((t > 0) & (x * x + y * y <= r * r), t, INF))
+        front = sign * d[..., 2] < 0
+        best = jnp.minimum(best, jnp.where(front & (t > 0) & (x * x + y * y <= r * r), t, INF))
     return best
 
 
@@ -98,7 +96,7 @@ def box(o, d, size):
     t1, t2 = (-size - o) * inv, (size - o) * inv
     t_near = jnp.max(jnp.minimum(t1, t2), axis=-1)
     t_far = jnp.min(jnp.maximum(t1, t2), axis=-1)
-    return _first_positive(t_near, t_far, t_near <= t_far)
+    return _entry(t_near, t_near <= t_far)
 
 
 def plane(o, d, size):

@@ -13,20 +13,25 @@ import pytest
 from mujoco import mjx
 
 import jarena  # noqa: F401  (chooses the headless GL backend before mujoco renders)
-from jarena.arenas.dmc import common
+from jarena.arenas.dmc import SUITE, common
 from jarena.arenas.mjx import camera
+from jarena.arenas.mjx.dynamics import model_of
 
 SIZE = 64
 
 
 def random_state(model, seed):
-    """An ``MjData`` of ``model`` at random joint positions (quaternions normalised), forwarded."""
+    """An ``MjData`` of ``model`` at random joint positions, forwarded: hinges move by about 0.4 rad, slides by
+    5 cm (so a body's camera stays above the floor), free bodies 0.5 m sideways, quaternions normalised."""
     rng = np.random.default_rng(seed)
     data = mujoco.MjData(model)
     data.qpos[:] = model.qpos0 + rng.normal(size=model.nq) * 0.4
     for j in range(model.njnt):
         adr = model.jnt_qposadr[j]
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
+            data.qpos[adr] = model.qpos0[adr] + rng.normal() * 0.05
         if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            data.qpos[adr + 2] = model.qpos0[adr + 2]
             data.qpos[adr:adr + 2] = rng.normal(size=2) * 0.5
             data.qpos[adr + 3:adr + 7] /= np.linalg.norm(data.qpos[adr + 3:adr + 7])
         elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL:
@@ -142,3 +147,23 @@ def test_render_is_pure_and_batches():
     traced = render._cache_size()
     render(jax.tree_util.tree_map(lambda x: x[::-1], batch))
     assert render._cache_size() == traced
+
+
+@pytest.mark.parametrize("domain", sorted(SUITE))
+def test_every_suite_domain_and_camera_matches(domain):
+    """Every camera of every suite domain (egocentric cameras inside a head included: front faces only and the
+    near plane, as MuJoCo's renderer), one random state each."""
+    model = model_of(jarena.build_arena(f"dmc|domain:{domain},task:{SUITE[domain][0]}").dynamics)
+    scene = camera.scene_of(model)
+    data = random_state(model, 3)
+    renderer = mujoco.Renderer(model, 32, 32)
+    try:
+        for cam in range(model.ncam):
+            _, depth, segmentation = mujoco_frame(renderer, data, cam)
+            frame = jax.device_get(_render(scene, mjx.put_data(model, data), cam, 32, 32))
+            hit_ours, hit_theirs = frame.depth < scene.far * 0.999, depth < scene.far * 0.999
+            assert (hit_ours == hit_theirs).mean() >= 0.97, cam
+            assert np.median(np.abs(frame.depth - depth)[hit_ours & hit_theirs]) < 0.01, cam
+            assert np.all(frame.segmentation == segmentation, axis=-1).mean() >= 0.95, cam
+    finally:
+        renderer.close()
