@@ -14,9 +14,10 @@ constants (which objects, their types, sizes and colours) are read from the ``mu
 :func:`scene_of`; positions and orientations come from the physics state (``geom_xpos``, ``geom_xmat``,
 ``site_xpos``, ``cam_xpos``, ...), which MJX computes for the state after each step.
 
-Primitives: planes, spheres, capsules, ellipsoids, cylinders and boxes (:mod:`jarena.arenas.mjx.raycast`).
-Meshes, height fields and SDF geoms are not drawn yet: :func:`scene_of` raises naming them. Spatial tendons,
-which MuJoCo draws as thin capsules, are not drawn.
+Geoms: planes, spheres, capsules, ellipsoids, cylinders, boxes and meshes (:mod:`jarena.arenas.mjx.raycast`;
+a mesh costs one ray-triangle test per pixel and face, so large meshes are slow). Height fields and SDF geoms
+are not drawn yet: :func:`scene_of` raises naming them. Spatial tendons, which MuJoCo draws as thin capsules,
+are not drawn.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from jarena.arenas.mjx import raycast
 GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 SITE = int(mujoco.mjtObj.mjOBJ_SITE)
 
-_KINDS = tuple(raycast.INTERSECT)  # drawable primitive types, by name
+_KINDS = tuple(raycast.INTERSECT) + ("mesh",)  # drawable geom types, by name
 _MJ_KIND = {int(getattr(mujoco.mjtGeom, f"mjGEOM_{k.upper()}")): k for k in _KINDS}
 _VISIBLE_GROUPS = 3  # mujoco's default mjvOption draws geom and site groups 0, 1 and 2
 _DEFAULT_GEOM_RGBA = (0.5, 0.5, 0.5, 1.0)  # a geom's rgba when not set: its material's colour is used
@@ -76,6 +77,7 @@ class Scene:
     texture: np.ndarray  # int32 (n,): index into textures, -1 for none (planes only)
     texrepeat: np.ndarray  # float32 (n, 2) texture repeats per metre along the plane's x and y
     textures: tuple[np.ndarray, ...]  # float32 (h, w, 3) colours in [0, 1]
+    meshes: tuple[np.ndarray, ...]  # per mesh object, in object order: float32 (F, 3, 3) triangles, geom frame
     camera_fovy: np.ndarray  # float32 (ncam,) degrees
     camera_names: tuple[str, ...]
     lights: dict  # numpy arrays per light field (see _lights)
@@ -173,6 +175,13 @@ def scene_of(model: mujoco.MjModel) -> Scene:
     if missing:
         raise NotImplementedError(f"the JAX camera cannot draw {', '.join(missing)} yet; it draws "
                                   f"{', '.join(_KINDS)}")
+    meshes = []
+    for kind, _, i, _, _ in sorted(objects, key=lambda o: _KINDS.index(o[0])):
+        if kind == "mesh":
+            mesh = int(model.geom_dataid[i])
+            vert = model.mesh_vert[model.mesh_vertadr[mesh]:model.mesh_vertadr[mesh] + model.mesh_vertnum[mesh]]
+            face = model.mesh_face[model.mesh_faceadr[mesh]:model.mesh_faceadr[mesh] + model.mesh_facenum[mesh]]
+            meshes.append(np.asarray(vert[face], np.float32))
     for c in range(model.ncam):
         if int(model.cam_projection[c]) != 0 or np.any(model.cam_sensorsize[c] > 0):
             raise ValueError(f"camera {c} is orthographic or has sensor intrinsics; the JAX camera draws "
@@ -209,6 +218,7 @@ def scene_of(model: mujoco.MjModel) -> Scene:
         texture=np.array(texture_of, np.int32).reshape(-1),
         texrepeat=np.array([o[4][5] for o in objects], f32).reshape(-1, 2),
         textures=tuple(textures),
+        meshes=tuple(meshes),
         camera_fovy=np.asarray(model.cam_fovy, f32),
         camera_names=tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_CAMERA, c) or "" for c in range(model.ncam)),
         lights=_lights(model),
@@ -299,12 +309,19 @@ def render(scene: Scene, data, camera: int, height: int, width: int) -> Frame:
     pos, mat = _object_poses(scene, data)
 
     # Nearest hit over all objects: each primitive type tests its own objects, in their frames.
-    hits = []
+    hits, mesh_normals = [], []
     for kind, start, stop in scene.groups:
         m = mat[start:stop]  # (n, 3, 3): columns are the object's axes in the world
         o_local = jnp.einsum("ni,nij->nj", origin - pos[start:stop], m)  # (n, 3)
         d_local = (rays[:, None, 0, None] * m[None, :, 0, :] + rays[:, None, 1, None] * m[None, :, 1, :]
                    + rays[:, None, 2, None] * m[None, :, 2, :])  # (P, n, 3)
+        if kind == "mesh":
+            for j, triangles in enumerate(scene.meshes):
+                t, face = raycast.triangles(o_local[j], d_local[:, j], triangles)
+                hits.append(t[:, None])
+                face_normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+                mesh_normals.append(jnp.asarray(face_normals)[face])
+            continue
         hits.append(raycast.INTERSECT[kind](o_local[None], d_local, jnp.asarray(scene.size[start:stop])[None]))
     if hits:
         t_all = jnp.concatenate(hits, axis=-1)  # (P, n)
@@ -318,7 +335,12 @@ def render(scene: Scene, data, camera: int, height: int, width: int) -> Frame:
     t = jnp.where(hit, t, scene.far)
 
     pixel_angle = 2 * jnp.tan(jnp.deg2rad(jnp.asarray(scene.camera_fovy[camera])) / 2) / height
-    rgb = _shade(scene, data, origin, rays, t, nearest, hit, pos, mat, pixel_angle)
+    mesh_normal = None
+    if mesh_normals:  # the winning mesh's face normal, per pixel (any mesh's where the winner is not one)
+        mesh_start = next(start for kind, start, _ in scene.groups if kind == "mesh")
+        which = jnp.clip(nearest - mesh_start, 0, len(mesh_normals) - 1)
+        mesh_normal = jnp.take_along_axis(jnp.stack(mesh_normals, axis=1), which[:, None, None], axis=1)[:, 0]
+    rgb = _shade(scene, data, origin, rays, t, nearest, hit, pos, mat, pixel_angle, mesh_normal)
     ids = jnp.where(hit, jnp.asarray(scene.object_id)[nearest] if scene.num_objects else -1, -1)
     types = jnp.where(hit, jnp.asarray(scene.object_type)[nearest] if scene.num_objects else -1, -1)
     return Frame(rgb=rgb.reshape(height, width, 3),
@@ -326,7 +348,7 @@ def render(scene: Scene, data, camera: int, height: int, width: int) -> Frame:
                  segmentation=jnp.stack([ids, types], axis=-1).reshape(height, width, 2).astype(jnp.int32))
 
 
-def _shade(scene: Scene, data, origin, rays, t, nearest, hit, pos, mat, pixel_angle) -> jax.Array:
+def _shade(scene: Scene, data, origin, rays, t, nearest, hit, pos, mat, pixel_angle, mesh_normal) -> jax.Array:
     """uint8 (P, 3) colours of the pixels: shaded surfaces where ``hit``, the sky elsewhere (``pixel_angle``:
     radians a pixel spans)."""
     unit = rays / jnp.linalg.norm(rays, axis=-1, keepdims=True)
@@ -343,7 +365,8 @@ def _shade(scene: Scene, data, origin, rays, t, nearest, hit, pos, mat, pixel_an
     n_local = jnp.zeros_like(local)
     for index, name in enumerate(_KINDS):
         if any(k == name for k, _, _ in scene.groups):
-            n_local = jnp.where((kind == index)[:, None], raycast.normal(name, local, size), n_local)
+            normal_here = mesh_normal if name == "mesh" else raycast.normal(name, local, size)
+            n_local = jnp.where((kind == index)[:, None], normal_here, n_local)
     normal = jnp.einsum("pij,pj->pi", m, n_local)
     normal = normal / jnp.maximum(jnp.linalg.norm(normal, axis=-1, keepdims=True), 1e-9)
     normal = jnp.where(jnp.sum(normal * unit, axis=-1, keepdims=True) > 0, -normal, normal)  # face the camera

@@ -144,3 +144,31 @@ def normal(kind: str, p, size) -> jax.Array:
 #: lower case).
 INTERSECT = {"plane": plane, "sphere": sphere, "capsule": capsule, "ellipsoid": ellipsoid,
              "cylinder": cylinder, "box": box}
+
+
+def triangles(o, d, vertices) -> tuple[jax.Array, jax.Array]:
+    """Nearest front-facing triangle of a mesh hit by each ray (Moller-Trumbore).
+
+    Args:
+      o, d: ray origins and directions, (..., 3), in the mesh's frame.
+      vertices: (F, 3, 3) triangles, counter-clockwise seen from their front (MuJoCo's outward faces).
+    Returns:
+      ``(t, face)``: (...) the ray parameter of the nearest hit (``inf`` for none) and (...) int32 the index of
+      that triangle (0 where none).
+    """
+    v0, e1, e2 = (jnp.asarray(x, jnp.float32) for x in (vertices[:, 0], vertices[:, 1] - vertices[:, 0],
+                                                          vertices[:, 2] - vertices[:, 0]))
+    o, d = o[..., None, :], d[..., None, :]  # (..., 1, 3) against (F, 3)
+    pvec = jnp.cross(d, e2)
+    det = _dot(e1, pvec)
+    front = det > _EPS  # the ray meets the face against its normal cross(e1, e2)
+    inv = 1.0 / jnp.where(front, det, 1.0)
+    tvec = o - v0
+    u = _dot(tvec, pvec) * inv
+    qvec = jnp.cross(tvec, e1)
+    v = _dot(d, qvec) * inv
+    t = _dot(e2, qvec) * inv
+    hit = front & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+    t = jnp.where(hit, t, INF)
+    face = jnp.argmin(t, axis=-1).astype(jnp.int32)
+    return jnp.min(t, axis=-1), face

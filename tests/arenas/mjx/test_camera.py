@@ -122,11 +122,48 @@ def test_non_square_images_and_camera_names():
         scene.camera(5)
 
 
-def test_meshes_are_named_as_not_drawn_yet():
+MESHES = """
+<mujoco>
+  <asset>
+    <mesh name="tet" vertex="0 0 0 1 0 0 0 1 0 0 0 1" scale="0.4 0.4 0.4"/>
+    <mesh name="gem" vertex="0.3 0 0  -0.3 0 0  0 0.2 0  0 -0.2 0  0 0 0.25  0 0 -0.25  0.1 0.1 0.1"/>
+  </asset>
+  <worldbody>
+    <light pos="0 0 3"/>
+    <camera name="above" pos="0.2 -1.6 1.4" xyaxes="1 0 0 0 0.7 0.7"/>
+    <geom name="floor" type="plane" size="2 2 0.1" rgba="0.3 0.4 0.5 1"/>
+    <body name="a" pos="-0.3 0 0.4"><freejoint/><geom name="rock" type="mesh" mesh="tet" rgba="0.8 0.5 0.2 1"/></body>
+    <body name="b" pos="0.35 0.1 0.35"><freejoint/><geom name="gem" type="mesh" mesh="gem" rgba="0.2 0.7 0.3 1"/></body>
+    <body name="c" pos="0 0.3 0.2"><freejoint/><geom name="ball" type="sphere" size="0.1"/></body>
+  </worldbody>
+</mujoco>"""
+
+
+def test_meshes_match_mujocos_renderer():
+    model = mujoco.MjModel.from_xml_string(MESHES)
+    scene = camera.scene_of(model)
+    assert [len(m) for m in scene.meshes] == [4, 10]  # the faces of the tetrahedron and of the gem's hull
+    renderer = mujoco.Renderer(model, SIZE, SIZE)
+    try:
+        for seed in range(3):
+            data = random_state(model, seed)
+            _, depth, segmentation = mujoco_frame(renderer, data, 0)
+            frame = jax.device_get(_render(scene, mjx.put_data(model, data), 0, SIZE, SIZE))
+            assert np.isin(segmentation[..., 0], (1, 2)).sum() > 50  # the meshes are in view
+            both = (frame.depth < scene.far * 0.999) & (depth < scene.far * 0.999)
+            assert np.median(np.abs(frame.depth - depth)[both]) < 0.01
+            assert np.all(frame.segmentation == segmentation, axis=-1).mean() >= 0.97
+            rock = frame.rgb[frame.segmentation[..., 0] == 1].astype(int)
+            assert rock[:, 0].mean() > rock[:, 2].mean() + 40  # shaded in its orange, not black (normals face out)
+    finally:
+        renderer.close()
+
+
+def test_height_fields_are_named_as_not_drawn_yet():
     model = mujoco.MjModel.from_xml_string("""
-        <mujoco><asset><mesh name="tet" vertex="0 0 0 1 0 0 0 1 0 0 0 1"/></asset>
-        <worldbody><camera name="c" pos="0 0 3"/><geom name="rock" type="mesh" mesh="tet"/></worldbody></mujoco>""")
-    with pytest.raises(NotImplementedError, match=r"cannot draw geom 'rock' \(mesh\) yet; it draws plane, sphere"):
+        <mujoco><asset><hfield name="h" nrow="2" ncol="2" size="1 1 0.1 0.1"/></asset>
+        <worldbody><camera name="c" pos="0 0 3"/><geom name="land" type="hfield" hfield="h"/></worldbody></mujoco>""")
+    with pytest.raises(NotImplementedError, match=r"cannot draw geom 'land' \(hfield\) yet; it draws plane, sphere"):
         camera.scene_of(model)
 
 
