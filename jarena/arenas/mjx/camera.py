@@ -302,8 +302,13 @@ def render(scene: Scene, data, camera: int, height: int, width: int) -> Frame:
     Args:
       scene: from :func:`scene_of` of the model ``data`` belongs to (static).
       data: an ``mjx.Data`` whose kinematics are current (as after ``mjx.forward`` or an MJX arena's step).
-      camera, height, width: static ints.
+      camera, height, width: static ints (a ``ValueError`` for a camera the scene lacks or a size below 1).
     """
+    if not isinstance(camera, int | np.integer) or not 0 <= camera < len(scene.camera_names):
+        raise ValueError(f"render: camera must be an id in [0, {len(scene.camera_names)}) (Scene.camera maps "
+                         f"names to ids), got {camera!r}")
+    if min(height, width) < 1:
+        raise ValueError(f"render: height and width must be >= 1, got {height} x {width}")
     origin = data.cam_xpos[camera]
     rays = camera_rays(scene.camera_fovy[camera], height, width) @ data.cam_xmat[camera].T  # (P, 3) world
     pos, mat = _object_poses(scene, data)

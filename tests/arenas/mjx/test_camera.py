@@ -120,6 +120,8 @@ def test_non_square_images_and_camera_names():
         scene.camera("top")
     with pytest.raises(ValueError, match="camera must be a model camera's name or id; got 5"):
         scene.camera(5)
+    with pytest.raises(ValueError, match=r"render: camera must be an id in \[0, 2\)"):
+        camera.render(scene, mjx.put_data(model, data), 2, 8, 8)
 
 
 MESHES = """
