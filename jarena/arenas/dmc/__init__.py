@@ -109,9 +109,16 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
                              f"{', '.join(d for d in SUITE if 'touch' in DOMAINS[d].unread_sensors)}")
         optioned = {name: common.with_options(dom.dynamics_for(name), *options) for name in dom.tasks}
         domains = {domain: dataclasses.replace(dom, task_dynamics={n: (lambda d=d: d) for n, d in optioned.items()})}
-    return assemble("dmc", domains, domain, task, action, time_limit, wrap, eval_episodes, val_episodes,
-                    auto_reset=auto_reset,
-                    sensor=_camera_options(pixels, depth, segmentation, state, camera, frame_stack))
+    arena = assemble("dmc", domains, domain, task, action, time_limit, wrap, eval_episodes, val_episodes,
+                     auto_reset=auto_reset,
+                     sensor=_camera_options(pixels, depth, segmentation, state, camera, frame_stack))
+    if pixels is not None:
+        # a pixel arena is its own benchmark: its name (run directories, tuned configs) says so
+        from jarena.arenas.mjx.pixels import image_size
+        height, width = image_size(pixels)
+        size = str(height) if height == width else f"{height}x{width}"
+        arena = dataclasses.replace(arena, name=f"{arena.name}-pixels{size}")
+    return arena
 
 
 def _camera_options(pixels, depth, segmentation, state, camera, frames):

@@ -49,6 +49,8 @@ def test_images_only_and_other_cameras():
     assert set(arena.observation_spec.spaces) == {"pixels"}
     assert arena.observation_spec["pixels"].shape == (24, 40, 3)
     assert "lookatcart" in arena.sensor.name
+    assert arena.name == "dmc-cartpole-balance-pixels24x40"  # its own benchmark: runs and configs apart
+    assert jarena.build_arena("dmc|domain:cartpole,pixels:64").name == "dmc-cartpole-balance-pixels64"
 
 
 @pytest.mark.parametrize("text, message", [
