@@ -32,13 +32,8 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import datetime
-import importlib.metadata
 import os
-import platform
-import statistics
 import sys
-import time
 
 import jax
 import jax.numpy as jnp
@@ -51,7 +46,8 @@ except ImportError:  # run from a checkout without installing: put the repositor
 from jarena.arenas.cloth import camera as camera_lib  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from cartpole_throughput import cpu_model, fmt, parse_batches, write_report  # noqa: E402
+from cartpole_throughput import fmt, parse_batches, write_report  # noqa: E402
+from timing import environment, time_interleaved  # noqa: E402
 
 ARENA = "cloth|domain:square_fabric,initial:crumpled,action:pixel_pick_and_place(1),task:flattening"
 MEASUREMENTS = ("act", "act+reset", "physics", "render")
@@ -118,36 +114,8 @@ def make(measurement: str, batch: int, args):
 
 
 def time_batch(batch: int, args) -> dict:
-    out = {}
-    compiled = {}
-    for m in args.measurements:
-        run, carry, units = make(m, batch, args)
-        t0 = time.perf_counter()
-        fn = jax.jit(run).lower(carry).compile()
-        compile_s = time.perf_counter() - t0
-        carry = jax.block_until_ready(fn(carry))  # warm-up
-        compiled[m] = [fn, carry, units, compile_s, []]
-    for _ in range(args.repeats):
-        for m in args.measurements:
-            entry = compiled[m]
-            t0 = time.perf_counter()
-            entry[1] = jax.block_until_ready(entry[0](entry[1]))
-            entry[4].append(time.perf_counter() - t0)
-    for m, (_, _, units, compile_s, times) in compiled.items():
-        best = min(times)
-        out[m] = {"per_s": units / best, "median_per_s": units / statistics.median(times), "best_s": best,
-                  "compile_s": compile_s, "units_per_call": units}
-        print(f"B={batch:6d} {m:10s} {units / best:12.4g}/s  (call {best * 1e3:.1f} ms, compile {compile_s:.1f} s)",
-              flush=True)
-    return out
-
-
-def environment() -> dict:
-    dev = jax.devices()[0]
-    return {"date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-            "backend": jax.default_backend(), "device": dev.device_kind, "cpu": cpu_model(),
-            "cpu_count": os.cpu_count(), "python": platform.python_version(), "jax": jax.__version__,
-            "jaxlib": importlib.metadata.version("jaxlib"), "command": " ".join(["python"] + sys.argv)}
+    return time_interleaved({m: (lambda m=m: make(m, batch, args)) for m in args.measurements}, args.repeats,
+                            label=f"B={batch:6d} ")
 
 
 def markdown(env: dict, rows: list[dict], args) -> str:

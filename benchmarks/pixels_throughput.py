@@ -29,11 +29,8 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import datetime
-import importlib.metadata
+import functools
 import os
-import platform
-import statistics
 import sys
 import time
 
@@ -51,14 +48,22 @@ from jarena.arenas.mjx import camera as camera_lib  # noqa: E402
 from jarena.arenas.mjx.dynamics import model_of  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from cartpole_throughput import cpu_model, fmt, parse_batches, write_report  # noqa: E402
+from cartpole_throughput import fmt, parse_batches, write_report  # noqa: E402
+from timing import environment, time_interleaved  # noqa: E402
 
 MEASUREMENTS = ("render", "step", "pixel-step", "host")
 DOMAINS = {"walker": "walk", "cartpole": "swingup", "cheetah": "run", "finger": "spin", "humanoid": "walk"}
 
 
-def posed_states(arena, batch: int, seed: int, steps: int = 10):
-    """B arena states a few random steps after reset (varied poses)."""
+def state_arena(domain: str):
+    return jarena.build_arena(f"dmc|domain:{domain},task:{DOMAINS[domain]}")
+
+
+@functools.cache  # every measurement of a (domain, B) starts from the same states: pose them once
+def posed_states(domain: str, batch: int, seed: int, steps: int = 10):
+    """B states of the domain's state-only arena a few random steps after reset (varied poses); the pixel
+    arena's states have the same structure and physics."""
+    arena = state_arena(domain)
     params = arena.default_params()
 
     def go(key):
@@ -75,10 +80,11 @@ def posed_states(arena, batch: int, seed: int, steps: int = 10):
 
 def make(measurement: str, domain: str, resolution: int, batch: int, args):
     """``(run, carry, units)``: ``run(carry) -> carry`` one timed call, ``units`` counted per call."""
-    base = f"dmc|domain:{domain},task:{DOMAINS[domain]}"
-    arena = jarena.build_arena(base if measurement != "pixel-step" else f"{base},pixels:{resolution}")
+    arena = state_arena(domain)
+    if measurement == "pixel-step":
+        arena = jarena.build_arena(f"{arena.build_string},pixels:{resolution}")
     params = arena.default_params()
-    states = posed_states(arena, batch, args.seed)
+    states = posed_states(domain, batch, args.seed)
     if measurement in ("step", "pixel-step"):
         def run(carry):
             states, key = carry
@@ -114,9 +120,8 @@ def make(measurement: str, domain: str, resolution: int, batch: int, args):
 
 def host_fps(domain: str, resolution: int, frames: int, seed: int) -> dict:
     """Frames/s of ``mujoco.Renderer`` rendering camera 0 of ``frames`` random poses, one after another."""
-    arena = jarena.build_arena(f"dmc|domain:{domain},task:{DOMAINS[domain]}")
-    model = model_of(arena.dynamics)
-    states = jax.device_get(posed_states(arena, frames, seed).physics.qpos)
+    model = model_of(state_arena(domain).dynamics)
+    states = jax.device_get(posed_states(domain, frames, seed).physics.qpos)
     data = mujoco.MjData(model)
     renderer = mujoco.Renderer(model, resolution, resolution)
     try:
@@ -139,37 +144,8 @@ def host_fps(domain: str, resolution: int, frames: int, seed: int) -> dict:
 
 
 def time_batch(domain: str, resolution: int, batch: int, args) -> dict:
-    compiled, out = {}, {}
-    for m in args.measurements:
-        if m == "host":
-            continue
-        run, carry, units = make(m, domain, resolution, batch, args)
-        t0 = time.perf_counter()
-        fn = jax.jit(run).lower(carry).compile()
-        compile_s = time.perf_counter() - t0
-        carry = jax.block_until_ready(fn(carry))  # warm-up
-        compiled[m] = [fn, carry, units, compile_s, []]
-    for _ in range(args.repeats):
-        for entry in compiled.values():
-            t0 = time.perf_counter()
-            entry[1] = jax.block_until_ready(entry[0](entry[1]))
-            entry[4].append(time.perf_counter() - t0)
-    for m, (_, _, units, compile_s, times) in compiled.items():
-        best = min(times)
-        out[m] = {"per_s": units / best, "median_per_s": units / statistics.median(times), "best_s": best,
-                  "compile_s": compile_s, "units_per_call": units}
-        print(f"{domain} R={resolution} B={batch:6d} {m:10s} {units / best:12.4g}/s  (call {best * 1e3:.1f} ms, "
-              f"compile {compile_s:.1f} s)", flush=True)
-    return out
-
-
-def environment() -> dict:
-    dev = jax.devices()[0]
-    return {"date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-            "backend": jax.default_backend(), "device": dev.device_kind, "cpu": cpu_model(),
-            "cpu_count": os.cpu_count(), "python": platform.python_version(), "jax": jax.__version__,
-            "mujoco": mujoco.__version__, "mujoco_gl": os.environ.get("MUJOCO_GL", ""),
-            "jaxlib": importlib.metadata.version("jaxlib"), "command": " ".join(["python"] + sys.argv)}
+    makers = {m: (lambda m=m: make(m, domain, resolution, batch, args)) for m in args.measurements if m != "host"}
+    return time_interleaved(makers, args.repeats, label=f"{domain} R={resolution} B={batch:6d} ")
 
 
 def markdown(env: dict, rows: list[dict], hosts: dict) -> str:
@@ -232,7 +208,7 @@ def parse_args(argv=None):
 
 def main(argv=None) -> int:
     args = parse_args(argv)
-    env = environment()
+    env = environment(mujoco=mujoco.__version__, mujoco_gl=os.environ.get("MUJOCO_GL", ""))
     hosts, rows = {}, []
     for domain in args.domains:
         for resolution in args.resolutions:

@@ -17,8 +17,7 @@ from jarena.core.types import Info
 
 def observation_size(spec: ArenaSpec) -> int:
     """Length of :func:`flatten_observation`'s output for an arena of ``spec``."""
-    leaves = jax.tree_util.tree_leaves(spec.observation.zeros())
-    return int(sum(np.prod(x.shape, dtype=int) for x in leaves)) + spec.goal_dim
+    return vector_size(spec, ())
 
 
 def flatten_observation(info: Info, batch_dims: int = 1) -> jax.Array:
@@ -37,7 +36,9 @@ def image_keys(spec: ArenaSpec) -> tuple[str, ...]:
 
 def vector_size(spec: ArenaSpec, images: tuple[str, ...]) -> int:
     """Length of :func:`split_observation`'s vector: every observation leaf but ``images``, and the goal."""
-    zeros = {k: v for k, v in spec.observation.zeros().items() if k not in images}
+    zeros = spec.observation.zeros()
+    if images:
+        zeros = {k: v for k, v in zeros.items() if k not in images}
     return int(sum(np.prod(x.shape, dtype=int) for x in jax.tree_util.tree_leaves(zeros))) + spec.goal_dim
 
 

@@ -109,22 +109,28 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
                              f"{', '.join(d for d in SUITE if 'touch' in DOMAINS[d].unread_sensors)}")
         optioned = {name: common.with_options(dom.dynamics_for(name), *options) for name in dom.tasks}
         domains = {domain: dataclasses.replace(dom, task_dynamics={n: (lambda d=d: d) for n, d in optioned.items()})}
+    size = None
+    if pixels is not None:
+        from jarena.arenas.mjx.pixels import image_size
+        try:
+            size = image_size(pixels)
+        except ValueError as e:
+            raise ArenaStringError(str(e)) from None
     arena = assemble("dmc", domains, domain, task, action, time_limit, wrap, eval_episodes, val_episodes,
                      auto_reset=auto_reset,
-                     sensor=_camera_options(pixels, depth, segmentation, state, camera, frame_stack))
-    if pixels is not None:
+                     sensor=_camera_options(size, depth, segmentation, state, camera, frame_stack))
+    if size is not None:
         # a pixel arena is its own benchmark: its name (run directories, tuned configs) says so
-        from jarena.arenas.mjx.pixels import image_size
-        height, width = image_size(pixels)
-        size = str(height) if height == width else f"{height}x{width}"
-        arena = dataclasses.replace(arena, name=f"{arena.name}-pixels{size}")
+        height, width = size
+        label = str(height) if height == width else f"{height}x{width}"
+        arena = dataclasses.replace(arena, name=f"{arena.name}-pixels{label}")
     return arena
 
 
-def _camera_options(pixels, depth, segmentation, state, camera, frames):
-    """A sensor transform adding camera images, or ``None`` without ``pixels`` (then the other options are
-    errors)."""
-    if pixels is None:
+def _camera_options(size, depth, segmentation, state, camera, frames):
+    """A sensor transform adding camera images of ``size`` (height, width), or ``None`` without it (then the
+    other options are errors)."""
+    if size is None:
         given = [n for n, v in (("depth", depth), ("segmentation", segmentation), ("state", state),
                                 ("camera", camera), ("frame_stack", frames)) if v is not None]
         if given:
@@ -134,12 +140,7 @@ def _camera_options(pixels, depth, segmentation, state, camera, frames):
         if value is not None and not isinstance(value, bool):
             raise ArenaStringError(f"{name} must be true or false, got {value!r}")
     from jarena.arenas.mjx.dynamics import model_of
-    from jarena.arenas.mjx.pixels import image_size, pixel_sensor
-    try:
-        size = image_size(pixels)
-    except ValueError as e:
-        raise ArenaStringError(str(e)) from None
-
+    from jarena.arenas.mjx.pixels import pixel_sensor
     from jarena.sensors import frame_stack
 
     def add_camera(sensor, dynamics):

@@ -175,18 +175,18 @@ def scene_of(model: mujoco.MjModel) -> Scene:
     if missing:
         raise NotImplementedError(f"the JAX camera cannot draw {', '.join(missing)} yet; it draws "
                                   f"{', '.join(_KINDS)}")
-    meshes = []
-    for kind, _, i, _, _ in sorted(objects, key=lambda o: _KINDS.index(o[0])):
-        if kind == "mesh":
-            mesh = int(model.geom_dataid[i])
-            vert = model.mesh_vert[model.mesh_vertadr[mesh]:model.mesh_vertadr[mesh] + model.mesh_vertnum[mesh]]
-            face = model.mesh_face[model.mesh_faceadr[mesh]:model.mesh_faceadr[mesh] + model.mesh_facenum[mesh]]
-            meshes.append(np.asarray(vert[face], np.float32))
     for c in range(model.ncam):
         if int(model.cam_projection[c]) != 0 or np.any(model.cam_sensorsize[c] > 0):
             raise ValueError(f"camera {c} is orthographic or has sensor intrinsics; the JAX camera draws "
                              "perspective cameras given by fovy")
     objects.sort(key=lambda o: _KINDS.index(o[0]))
+    meshes = []
+    for kind, _, i, _, _ in objects:
+        if kind == "mesh":
+            mesh = int(model.geom_dataid[i])
+            vert = model.mesh_vert[model.mesh_vertadr[mesh]:model.mesh_vertadr[mesh] + model.mesh_vertnum[mesh]]
+            face = model.mesh_face[model.mesh_faceadr[mesh]:model.mesh_faceadr[mesh] + model.mesh_facenum[mesh]]
+            meshes.append(np.asarray(vert[face], np.float32))
     groups, start = [], 0
     for kind in _KINDS:
         n = sum(o[0] == kind for o in objects)

@@ -57,6 +57,21 @@ def mujoco_frame(renderer, data, cam):
 _render = jax.jit(camera.render, static_argnums=(0, 2, 3, 4))
 
 
+def compare(renderer, scene, model, data, cam, height=SIZE, width=SIZE):
+    """Both renderers' pictures of ``data`` from ``cam`` and how they agree.
+
+    Returns ``(rgb, segmentation, frame, hits, errors, objects)``: MuJoCo's colour and segmentation, our frame,
+    the fraction of pixels on which both agree whether geometry is hit, the depth errors (metres) where both hit,
+    and the fraction of pixels that see the same object.
+    """
+    rgb, depth, segmentation = mujoco_frame(renderer, data, cam)
+    frame = jax.device_get(_render(scene, mjx.put_data(model, data), cam, height, width))
+    hit_ours, hit_theirs = frame.depth < scene.far * 0.999, depth < scene.far * 0.999
+    errors = np.abs(frame.depth - depth)[hit_ours & hit_theirs]
+    objects = np.all(frame.segmentation == segmentation, axis=-1).mean()
+    return rgb, segmentation, frame, (hit_ours == hit_theirs).mean(), errors, objects
+
+
 @pytest.mark.parametrize("domain", ["cartpole", "walker", "cheetah", "finger", "humanoid"])
 def test_geometry_matches_mujocos_renderer(domain):
     model = common.load_model(domain)
@@ -65,15 +80,11 @@ def test_geometry_matches_mujocos_renderer(domain):
     try:
         for seed in range(3):
             data = random_state(model, seed)
-            rgb, depth, segmentation = mujoco_frame(renderer, data, 0)
-            frame = jax.device_get(_render(scene, mjx.put_data(model, data), 0, SIZE, SIZE))
-            hit_ours, hit_theirs = frame.depth < scene.far * 0.999, depth < scene.far * 0.999
+            rgb, segmentation, frame, hits, error, objects = compare(renderer, scene, model, data, 0)
             assert (segmentation[..., 0] > 0).mean() > 0.01  # the view shows more than the floor (geom 0)
-            assert (hit_ours == hit_theirs).mean() >= 0.97
-            both = hit_ours & hit_theirs
-            error = np.abs(frame.depth - depth)[both]
+            assert hits >= 0.97
             assert np.median(error) < 0.01 and np.percentile(error, 99) < 0.05, (np.median(error), error.max())
-            assert np.all(frame.segmentation == segmentation, axis=-1).mean() >= 0.95
+            assert objects >= 0.95
             assert frame.rgb.dtype == np.uint8 and frame.rgb.shape == (SIZE, SIZE, 3)
             # the picture itself: the body's pixels are its colour, warm against the blue-grey floor and sky,
             # as in MuJoCo's picture
@@ -92,12 +103,10 @@ def test_sites_and_a_tracking_camera_match():
         scene = camera.scene_of(model)
         renderer = mujoco.Renderer(model, SIZE, SIZE)
         try:
-            data = random_state(model, 7)
-            _, depth, segmentation = mujoco_frame(renderer, data, cam)
+            _, _, frame, _, _, objects = compare(renderer, scene, model, random_state(model, 7), cam)
         finally:
             renderer.close()
-        frame = jax.device_get(_render(scene, mjx.put_data(model, data), cam, SIZE, SIZE))
-        assert np.all(frame.segmentation == segmentation, axis=-1).mean() >= 0.95
+        assert objects >= 0.95
         if domain == "finger":
             assert (frame.segmentation[..., 1] == camera.SITE).sum() > 5
 
@@ -106,16 +115,15 @@ def test_non_square_images_and_camera_names():
     model = common.load_model("cartpole")
     scene = camera.scene_of(model)
     data = random_state(model, 1)
-    renderer = mujoco.Renderer(model, 48, 80)
-    try:
-        _, depth, segmentation = mujoco_frame(renderer, data, 1)
-    finally:
-        renderer.close()
     cam = scene.camera("lookatcart")
     assert cam == 1
-    frame = jax.device_get(_render(scene, mjx.put_data(model, data), cam, 48, 80))
+    renderer = mujoco.Renderer(model, 48, 80)
+    try:
+        _, _, frame, _, _, objects = compare(renderer, scene, model, data, cam, 48, 80)
+    finally:
+        renderer.close()
     assert frame.depth.shape == (48, 80)
-    assert np.all(frame.segmentation == segmentation, axis=-1).mean() >= 0.95
+    assert objects >= 0.95
     with pytest.raises(ValueError, match=r"no camera named 'top'; its cameras: 0: fixed, 1: lookatcart"):
         scene.camera("top")
     with pytest.raises(ValueError, match="camera must be a model camera's name or id; got 5"):
@@ -149,12 +157,10 @@ def test_meshes_match_mujocos_renderer():
     try:
         for seed in range(3):
             data = random_state(model, seed)
-            _, depth, segmentation = mujoco_frame(renderer, data, 0)
-            frame = jax.device_get(_render(scene, mjx.put_data(model, data), 0, SIZE, SIZE))
+            _, segmentation, frame, _, error, objects = compare(renderer, scene, model, data, 0)
             assert np.isin(segmentation[..., 0], (1, 2)).sum() > 50  # the meshes are in view
-            both = (frame.depth < scene.far * 0.999) & (depth < scene.far * 0.999)
-            assert np.median(np.abs(frame.depth - depth)[both]) < 0.01
-            assert np.all(frame.segmentation == segmentation, axis=-1).mean() >= 0.97
+            assert np.median(error) < 0.01
+            assert objects >= 0.97
             rock = frame.rgb[frame.segmentation[..., 0] == 1].astype(int)
             assert rock[:, 0].mean() > rock[:, 2].mean() + 40  # shaded in its orange, not black (normals face out)
     finally:
@@ -198,11 +204,9 @@ def test_every_suite_domain_and_camera_matches(domain):
     renderer = mujoco.Renderer(model, 32, 32)
     try:
         for cam in range(model.ncam):
-            _, depth, segmentation = mujoco_frame(renderer, data, cam)
-            frame = jax.device_get(_render(scene, mjx.put_data(model, data), cam, 32, 32))
-            hit_ours, hit_theirs = frame.depth < scene.far * 0.999, depth < scene.far * 0.999
-            assert (hit_ours == hit_theirs).mean() >= 0.97, cam
-            assert np.median(np.abs(frame.depth - depth)[hit_ours & hit_theirs]) < 0.01, cam
-            assert np.all(frame.segmentation == segmentation, axis=-1).mean() >= 0.95, cam
+            _, _, _, hits, error, objects = compare(renderer, scene, model, data, cam, 32, 32)
+            assert hits >= 0.97, cam
+            assert np.median(error) < 0.01, cam
+            assert objects >= 0.95, cam
     finally:
         renderer.close()
