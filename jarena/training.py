@@ -17,6 +17,7 @@ import csv
 import dataclasses
 import json
 import math
+import os
 import time
 import warnings
 from collections.abc import Callable
@@ -209,6 +210,9 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
             kept = keeper.offer(train_state, index + 1, validations_done[-1])
             bar.note(f"validation return {validations_done[-1]['return_mean']:.1f} at step {row['env_steps']}"
                      + (" (best so far: kept)" if kept else ""))
+        if run_path is not None:  # the curves so far survive a run that is stopped or killed
+            _write_csv(run_path / "train.csv", history)
+            _write_csv(run_path / "validation.csv", validations_done)
         if checkpointer is not None and ((index + 1) % checkpoint_every == 0 or index + 1 == num_chunks):
             checkpointer.save(index + 1, train_state, {"history": history, "validations": validations_done})
     close()
@@ -324,12 +328,15 @@ def _evaluate_and_write(agent, arena: Arena, policy, selected: dict, run_path: P
 
 
 def _write_csv(path: Path, rows: list[dict[str, float]]) -> None:
+    """Writes ``rows`` to ``path`` through a temporary file, so a reader (or a kill) never sees half a file."""
     if not rows:
         return
-    with open(path, "w", newline="") as f:
+    partial = path.with_name(path.name + ".partial")
+    with open(partial, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
+    os.replace(partial, path)
 
 
 def _plot(path: Path, history, validations, evaluation, agent: str, arena: str) -> None:

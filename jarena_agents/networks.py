@@ -50,12 +50,18 @@ def split_observation(info: Info, images: tuple[str, ...], batch_dims: int = 1) 
     return {"vector": vector, "images": {k: info.observation[k] for k in images}}
 
 
+#: Convolution paddings by config name.
+PADDINGS = ("VALID", "SAME")
+
+
 class PixelEncoder(nn.Module):
     """A convolutional torso for uint8 images: each key's (*, H, W, C) image scaled to [-0.5, 0.5], through
-    ``layers`` of ``(features, kernel, stride)`` ReLU convolutions ('SAME' padding; default: the Nature DQN's),
-    flattened; the keys' features concatenated (sorted by key)."""
+    ``layers`` of ``(features, kernel, stride)`` ReLU convolutions, flattened; the keys' features concatenated
+    (sorted by key). Defaults: the Nature DQN's layers and padding ('VALID': 64 x 64 -> 4 x 4 x 64 features;
+    'SAME' keeps ceil(H / stride))."""
 
     layers: Sequence[tuple[int, int, int]] = ((32, 8, 4), (64, 4, 2), (64, 3, 1))
+    padding: str = "VALID"
 
     @nn.compact
     def __call__(self, images: dict) -> jax.Array:
@@ -65,7 +71,11 @@ class PixelEncoder(nn.Module):
             batch = x.shape[:-3]
             x = x.reshape((-1,) + x.shape[-3:]).astype(jnp.float32) / 255.0 - 0.5
             for i, (features, kernel, stride) in enumerate(self.layers):
-                x = nn.relu(nn.Conv(features, (kernel, kernel), (stride, stride), padding="SAME",
+                if self.padding == "VALID" and min(x.shape[1:3]) < kernel:
+                    raise ValueError(f"image {key!r}: layer {i}'s {kernel} x {kernel} kernel does not fit its "
+                                     f"{x.shape[1]} x {x.shape[2]} input with 'VALID' padding; use smaller kernels "
+                                     f"or strides, or padding 'SAME'")
+                x = nn.relu(nn.Conv(features, (kernel, kernel), (stride, stride), padding=self.padding,
                                     kernel_init=nn.initializers.orthogonal(np.sqrt(2)), name=f"{key}_conv{i}")(x))
             out.append(x.reshape(batch + (-1,)))
         return jnp.concatenate(out, axis=-1)
@@ -165,7 +175,7 @@ class ActorCritic(nn.Module):
     :class:`TanhNormal` (mean and ``softplus(.) + min_std`` from the MLP, as Brax's PPO).
     ``value_hidden`` sizes the value MLP (default: ``hidden``); ``activation`` names both MLPs'.
     Input: a float (*, D) vector, or :func:`split_observation`'s dict, whose images go through a shared
-    :class:`PixelEncoder` (``cnn`` layers) and join the vector before both MLPs.
+    :class:`PixelEncoder` (``cnn`` layers, ``cnn_padding``) and join the vector before both MLPs.
     """
 
     action_spec: Spec
@@ -175,11 +185,13 @@ class ActorCritic(nn.Module):
     min_std: float = 1e-3
     activation: str = "tanh"
     cnn: Sequence[tuple[int, int, int]] = PixelEncoder.layers
+    cnn_padding: str = PixelEncoder.padding
 
     @nn.compact
     def __call__(self, x):
         if isinstance(x, dict):  # split_observation's {"vector", "images"}: one shared CNN torso for the images
-            x = jnp.concatenate([x["vector"], PixelEncoder(tuple(self.cnn), name="encoder")(x["images"])], axis=-1)
+            features = PixelEncoder(tuple(self.cnn), self.cnn_padding, name="encoder")(x["images"])
+            x = jnp.concatenate([x["vector"], features], axis=-1)
         value_hidden = self.hidden if self.value_hidden is None else self.value_hidden
         value = MLP(value_hidden, 1, output_scale=1.0, activation=self.activation, name="critic")(x)[..., 0]
         if isinstance(self.action_spec, Discrete):

@@ -2,6 +2,7 @@
 video failure can lose. A scripted "trainer" whose policy balances the pole only after chosen chunks makes
 the selection exact and fast (no learning involved)."""
 
+import csv
 import dataclasses
 import json
 
@@ -94,6 +95,19 @@ def test_a_resumed_run_says_so_and_keeps_the_best_policy(cartpole, tmp_path, cap
     assert f"resuming from step 700 of 2000 (checkpoint {tmp_path.absolute() / 'checkpoints' / '7'})" in out
     assert resumed.selected == {"select": "best", "update": 4, "env_steps": 400, "validation_return": 500.0}
     assert resumed.evaluation.summary()["return_mean"] == 500.0
+
+
+def test_a_stopped_run_leaves_its_curves_on_disk(cartpole, tmp_path):
+    """A run killed by a time limit keeps what it measured: train.csv and validation.csv grow chunk by chunk."""
+    agent = scripted_trainer((4,))
+    kwargs = dict(progress=False, run_dir=tmp_path, eval_videos=0, checkpoint_every=0, validate_every=2)
+    assert train_and_evaluate(agent, cartpole, jax.random.key(0), stop_after_chunks=5, **kwargs).evaluation is None
+    with open(tmp_path / "train.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["update"]) for r in rows] == [1, 2, 3, 4, 5]
+    with open(tmp_path / "validation.csv") as f:
+        assert [int(r["update"]) for r in csv.DictReader(f)] == [2, 4]
+    assert not list(tmp_path.glob("*.partial")) and not (tmp_path / "evaluation.json").exists()
 
 
 def test_training_arguments_are_checked(cartpole):

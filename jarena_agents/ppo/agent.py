@@ -57,6 +57,7 @@ class PPOConfig:
     # convolutions (features, kernel, stride) for image observations (uint8 (H, W, C) keys, e.g. pixels:64);
     # the Nature DQN's by default; unused on arenas without images
     cnn: tuple = ((32, 8, 4), (64, 4, 2), (64, 3, 1))
+    cnn_padding: str = "VALID"  # or "SAME"
     normalize_observations: bool = False  # normalises the vector observations (never the images)
     reward_scale: float = positive(1.0)
     # None: GAE over the whole rollout with the acting parameters, then transitions are shuffled
@@ -102,6 +103,8 @@ def make_ppo(config=None) -> Agent:
     cfg = make_config(PPOConfig, config, agent="ppo")
     if cfg.box_policy not in networks.BOX_POLICIES:
         raise ValueError(f"ppo: unknown box_policy {cfg.box_policy!r}; choose from {', '.join(networks.BOX_POLICIES)}")
+    if cfg.cnn_padding not in networks.PADDINGS:
+        raise ValueError(f"ppo: unknown cnn_padding {cfg.cnn_padding!r}; choose from {', '.join(networks.PADDINGS)}")
     if cfg.activation not in networks.ACTIVATIONS:
         raise ValueError(f"ppo: unknown activation {cfg.activation!r}; choose from {', '.join(networks.ACTIVATIONS)}")
     if cfg.steps_per_update % cfg.minibatches:
@@ -120,7 +123,8 @@ def make_ppo(config=None) -> Agent:
         networks.check_supported(spec.action, "ppo")
         return networks.ActorCritic(spec.action, tuple(cfg.hidden),
                                     None if cfg.value_hidden is None else tuple(cfg.value_hidden), cfg.box_policy,
-                                    activation=cfg.activation, cnn=tuple(tuple(layer) for layer in cfg.cnn))
+                                    activation=cfg.activation, cnn=tuple(tuple(layer) for layer in cfg.cnn),
+                                    cnn_padding=cfg.cnn_padding)
 
     def observe(spec: ArenaSpec, info: Info):
         """What the network reads: the flat observation vector, or with image keys the vector and the images."""

@@ -3,6 +3,7 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from flax import struct
 
 import jarena
@@ -72,7 +73,20 @@ def test_ppo_learns_to_read_pixels():
 
 
 def test_default_cnn_fits_64_pixel_images():
-    encoder = networks.PixelEncoder()
     images = {"pixels": jnp.zeros((2, 64, 64, 9), jnp.uint8)}
-    params = encoder.init(jax.random.key(0), images)
-    assert encoder.apply(params, images).shape == (2, 8 * 8 * 64)
+    for padding, side in (("VALID", 4), ("SAME", 8)):  # Nature DQN's: 64 -> 15 -> 6 -> 4; SAME: 16 -> 8 -> 8
+        encoder = networks.PixelEncoder(padding=padding)
+        params = encoder.init(jax.random.key(0), images)
+        assert encoder.apply(params, images).shape == (2, side * side * 64)
+
+
+def test_a_kernel_larger_than_its_input_is_a_clear_error():
+    encoder = networks.PixelEncoder()
+    images = {"pixels": jnp.zeros((1, 16, 16, 3), jnp.uint8)}  # 16 -> 3 after the first layer: 4 x 4 does not fit
+    with pytest.raises(ValueError, match="layer 1's 4 x 4 kernel does not fit its 3 x 3 input"):
+        encoder.init(jax.random.key(0), images)
+
+
+def test_unknown_padding_names_the_choices():
+    with pytest.raises(ValueError, match="cnn_padding 'same'.*VALID, SAME"):
+        jarena_agents.build_agent("ppo", {"cnn_padding": "same"})
