@@ -348,7 +348,8 @@ def _plot(path: Path, history, validations, evaluation, agent: str, arena: str) 
     except ImportError:  # plotting is optional
         return
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.plot([r["env_steps"] for r in history], [r["episode_return"] for r in history], label="training episodes")
+    finished = [r for r in history if np.isfinite(r["episode_return"])]  # chunks where no episode ended: no point
+    ax.plot([r["env_steps"] for r in finished], [r["episode_return"] for r in finished], label="training episodes")
     if validations:
         ax.plot([r["env_steps"] for r in validations], [r["return_mean"] for r in validations], "o-",
                 label="validation")

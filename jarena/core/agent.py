@@ -39,6 +39,10 @@ def _phase_zero(state, info: Info) -> jax.Array:
     return jnp.zeros(info.reward.shape, jnp.int32)
 
 
+def _same_state(state, num_arenas: int):
+    return state
+
+
 @dataclasses.dataclass(frozen=True)
 class Agent:
     """An agent.
@@ -54,6 +58,10 @@ class Agent:
       success, terminate: ``(state, info) -> bool (B,)``; the agent's own view of success, and whether
         it wants to stop.
       phase: ``(state, info) -> int32 (B,)``; the agent's current phase (e.g. for scripted oracles).
+      batch_state: ``(state, num_arenas) -> state``; fits a given state (a trained policy's, from
+        ``TrainableAgent.policy``) to a batch of B arenas: agents with per-arena memory (a recurrent
+        belief) allocate it here, others return the state as it is. Runners call it on every
+        ``agent_state`` they are given; a state already fitted to B arenas is returned unchanged.
       privileged: whether ``act`` needs privileged simulator state (oracles, planners).
       config: the config the agent was built with (not part of equality or hashing).
       made_for: names of the dynamics (``arena.dynamics.name``) the agent is written for, e.g.
@@ -69,6 +77,7 @@ class Agent:
     success: Callable[[PyTree, Info], jax.Array] = _all_false
     terminate: Callable[[PyTree, Info], jax.Array] = _all_false
     phase: Callable[[PyTree, Info], jax.Array] = _phase_zero
+    batch_state: Callable[[PyTree, int], PyTree] = _same_state
     privileged: bool = False
     config: Any = dataclasses.field(default=None, compare=False, hash=False)
     made_for: tuple[str, ...] = dataclasses.field(default=(), compare=False, hash=False)

@@ -92,6 +92,8 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
     params = arena.default_params() if params is None else params
     if agent_state is None:
         agent_state = agent.init(jax.random.fold_in(key, 0x1A1), arena.spec, int(ids.size))
+    else:
+        agent_state = agent.batch_state(agent_state, int(ids.size))
     out = _compiled_episodes(agent, arena, int(ids.size), int(max_steps), params_axis, int(filmed))(
         key, agent_state, params, jnp.asarray(ids))
     physics = out.pop("physics", None)  # stays on device: the renderer pulls only what it draws

@@ -109,5 +109,7 @@ def perform_parallel(agent: Agent, arena: Arena, key: jax.Array, num_arenas: int
     params = arena.default_params() if params is None else params
     if agent_state is None:
         agent_state = agent.init(jax.random.fold_in(key, 0x1A1), arena.spec, num_arenas)
+    else:
+        agent_state = agent.batch_state(agent_state, num_arenas)
     fn = _compiled(agent, arena, num_arenas, num_steps, params_axis, bool(record))
     return fn(key, start, agent_state, params)
