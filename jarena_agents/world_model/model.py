@@ -28,6 +28,7 @@ from flax import struct
 
 from jarena.core.arena import ArenaSpec
 from jarena.core.spec import Box, Discrete
+from jarena.data.experience import Experience
 from jarena_agents import networks
 from jarena_agents.config import ConfigError, at_least, in_unit_interval, non_negative, positive
 from jarena_agents.planners.model import Model, check_action_spec
@@ -182,6 +183,22 @@ def sequences_from_windows(spec: ArenaSpec, experience) -> Sequences:
                      cont=pad(1.0 - experience.terminated.astype(jnp.float32), 1.0),
                      is_first=jnp.arange(length + 1)[None, :].repeat(batch, 0) == 0,
                      mask=pad(jnp.ones((batch, length), jnp.float32), 0.0))
+
+
+def sequences_from_dataset(spec: ArenaSpec, batch: dict) -> Sequences:
+    """Model inputs from a :class:`jarena.data.Loader` batch in ``mode="window"`` (leaves (S, L, ...), read
+    from a ``TrajectoryDataset`` of the arena, e.g. one written by ``jarena collect``): as
+    :func:`sequences_from_windows`, for training the model offline."""
+    (action,) = jax.tree_util.tree_leaves(batch["action"])
+    shape = batch["reward"].shape
+    goals = [g.reshape(shape + (-1,)).astype(jnp.float32) for g in jax.tree_util.tree_leaves(batch["goal"])]
+    goal = jnp.concatenate(goals, -1) if goals else jnp.zeros(shape + (0,), jnp.float32)
+    zeros = jnp.zeros(shape, bool)
+    experience = Experience(observation=dict(batch["observation"]), action=action, reward=batch["reward"],
+                            terminated=batch["terminated"], truncated=batch["truncated"], success=zeros,
+                            next_observation=dict(batch["next_observation"]), goal=goal,
+                            episode=jnp.zeros(shape, jnp.int32), step=batch["step"])
+    return sequences_from_windows(spec, experience)
 
 
 def observe(model: WorldModel, params: dict, seq: Sequences, key: jax.Array | None,

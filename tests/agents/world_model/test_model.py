@@ -8,6 +8,7 @@ import pytest
 
 import jarena
 import jarena.data
+import jarena_agents
 from jarena.data.experience import transition_from
 from jarena_agents.config import ConfigError
 from jarena_agents.planners.cem import CEMConfig, cem_improve
@@ -164,3 +165,34 @@ def test_a_tiny_model_learns_pendulum_well_enough_to_plan(pendulum):
     random_plans = jax.random.uniform(jax.random.key(6), (64, 10, 1), minval=-2.0, maxval=2.0)
     planned = rollout_returns(learned, one, plan[None])[0]
     assert planned > jnp.mean(rollout_returns(learned, one, random_plans))
+
+
+def test_a_model_trains_offline_from_a_collected_dataset(pendulum, tmp_path):
+    """Agent-Arena's PlaNet trains from collected data: windows read from a zarr TrajectoryDataset (written by
+    ``collect``) become the same model inputs as the buffer's, and the model learns from them alone."""
+    with jarena.data.TrajectoryDataset(tmp_path / "pendulum", "w", **jarena.data.configs_for(pendulum)) as dataset:
+        jarena.data.collect(jarena_agents.build_agent("random"), pendulum, dataset, 16, key=jax.random.key(0),
+                            progress=False)
+    with jarena.data.TrajectoryDataset(tmp_path / "pendulum", "r") as dataset:
+        loader = dataset.loader(16, mode="window", length=32)
+        batch = loader.sample(jax.random.key(1))
+        seq = wm.sequences_from_dataset(pendulum.spec, batch)
+        # the layout: the window's first observation, then each step's next observation and the action into it
+        trajectory = dataset.get_trajectory(int(batch["trajectory"][0, 0]))
+        start = int(batch["step"][0, 0])
+        np.testing.assert_allclose(seq.vector[0], trajectory["observation"]["state"][start:start + 33], rtol=1e-6)
+        actions = trajectory["action"]["action"][start:start + 32]
+        np.testing.assert_allclose(seq.action[0, 1:, 0], actions.reshape(-1), rtol=1e-6)
+        np.testing.assert_allclose(seq.reward[0, 1:], trajectory["reward"][start:start + 32], rtol=1e-6)
+
+        model = wm.make_world_model(pendulum.spec, SMALL)
+        optimizer = wm.model_optimizer(SMALL)
+        params = wm.init_params(model, jax.random.key(2))
+        opt_state = optimizer.init(params)
+        step = jax.jit(lambda p, o, s, k: wm.train_step(model, optimizer, p, o, s, k))
+        first = None
+        for i, batch in enumerate(loader.batches(jax.random.key(3), 300)):
+            params, opt_state, metrics = step(params, opt_state, wm.sequences_from_dataset(pendulum.spec, batch),
+                                              jax.random.key(i))
+            first = float(metrics["observation_loss"]) if first is None else first
+    assert float(metrics["observation_loss"]) < 0.1 * first, (first, float(metrics["observation_loss"]))
