@@ -1,15 +1,16 @@
 """``planet``: a world model learned online, and CEM planning in its latent space (Hafner et al. 2019, PlaNet).
 
-Each update steps the B arenas ``rollout_length`` times and adds the transitions to a window buffer; then
-``train_steps`` world-model gradient steps (:mod:`jarena_agents.world_model`) on sequences of
-``sequence_length`` transitions. Until ``learning_starts`` environment steps, actions are uniform (the
-seed episodes); afterwards the agent acts as below, with Gaussian exploration noise.
+Each update collects ``rollout_length`` steps of the B arenas into a window buffer
+(:mod:`jarena_agents.world_model.online`), then takes ``train_steps`` world-model gradient steps
+(:mod:`jarena_agents.world_model`) on sequences of ``sequence_length`` transitions. Until ``learning_starts``
+environment steps, actions are uniform (the seed episodes); afterwards the agent acts as below, with Gaussian
+exploration noise.
 
-Acting: per arena, the belief ``Latent`` is filtered with each observation and the previous action (the
-posterior's mode; it restarts at a new episode), then CEM (:func:`jarena_agents.planners.cem.cem_improve`)
-plans ``horizon`` actions over :func:`jarena_agents.world_model.model.latent_model` -- the same planner code
-that plans over an arena's own dynamics -- warm-started from the previous plan shifted by one step.
-Defaults: PlaNet's planner (horizon 12, 1000 candidates, 100 elites, 10 iterations), exploration noise 0.3.
+Acting: per arena, the belief is filtered with each observation and the previous action (restarted at a new
+episode), then CEM (:func:`jarena_agents.planners.cem.cem_improve`) plans ``horizon`` actions over
+:func:`jarena_agents.world_model.model.latent_model` -- the same planner code that plans over an arena's own
+dynamics -- warm-started from the previous plan shifted by one step. Defaults: PlaNet's planner (horizon 12, 1000
+candidates, 100 elites, 10 iterations), exploration noise 0.3.
 """
 
 from __future__ import annotations
@@ -23,49 +24,32 @@ from flax import struct
 
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
-from jarena.core.batching import batch_reset, batch_step
+from jarena.core.batching import batch_reset
 from jarena.core.types import ArenaState, Info
 from jarena.data.buffer import make_buffer
 from jarena.data.buffer_state import BufferState
-from jarena.data.experience import experience_spec, transition_from
-from jarena_agents.config import at_least, in_unit_interval, make_config, non_negative
+from jarena.data.experience import experience_spec
+from jarena_agents.config import at_least, in_unit_interval, make_config
 from jarena_agents.planners.cem import CEMConfig, cem_improve
 from jarena_agents.planners.model import check_action_spec
 from jarena_agents.planners.sampling import shift_plan
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
 from jarena_agents.world_model import model as wm
-from jarena_agents.world_model.model import WorldModelConfig
-from jarena_agents.world_model.networks import Latent, RSSMCell
+from jarena_agents.world_model import online
+from jarena_agents.world_model.networks import Latent
 
 PyTree = Any
 
 
 @dataclasses.dataclass(frozen=True)
-class PlaNetConfig(WorldModelConfig):
-    """:class:`WorldModelConfig` (the model) plus data collection and planning."""
+class PlaNetConfig(online.OnlineConfig):
+    """:class:`~jarena_agents.world_model.online.OnlineConfig` (model, collection) plus the planner."""
 
-    num_arenas: int = at_least(1, default=8)
-    rollout_length: int = at_least(1, default=100)  # environment steps per arena per update
-    train_steps: int = at_least(1, default=100)  # world-model gradient steps per update
-    batch_size: int = at_least(1, default=16)
-    sequence_length: int = at_least(2, default=50)
-    buffer_size: int = at_least(1, default=1_000_000)
-    learning_starts: int = at_least(0, default=5_000)  # environment steps of uniform actions first
-    total_steps: int = at_least(1, default=1_000_000)
     horizon: int = at_least(1, default=12)
     samples: int = at_least(1, default=1000)
     iterations: int = at_least(1, default=10)
     elite_fraction: float = in_unit_interval(0.1, open_low=True)
-    exploration_noise: float = non_negative(0.3)  # fraction of the action half-range
-
-    @property
-    def steps_per_update(self) -> int:
-        return self.num_arenas * self.rollout_length
-
-    @property
-    def num_updates(self) -> int:
-        return max(1, self.total_steps // self.steps_per_update)
 
 
 @struct.dataclass
@@ -103,21 +87,10 @@ class PlaNetTrainState:
     env_steps: jax.Array  # int32
 
 
-METRICS = ("model_loss", "observation_loss", "reward_loss", "continue_loss", "kl")
-
-
-def _check_config(cfg: PlaNetConfig) -> None:
-    if cfg.buffer_size % cfg.num_arenas:
-        raise ValueError(f"planet: buffer_size={cfg.buffer_size} must be a multiple of num_arenas={cfg.num_arenas}")
-    if cfg.buffer_size // cfg.num_arenas < cfg.sequence_length:
-        raise ValueError(f"planet: each arena keeps buffer_size / num_arenas = {cfg.buffer_size // cfg.num_arenas} "
-                         f"steps, fewer than sequence_length={cfg.sequence_length}")
-
-
 def make_planet(config=None) -> TrainableAgent:
     cfg = make_config(PlaNetConfig, config, agent="planet")
-    _check_config(cfg)
-    model_cfg = WorldModelConfig(**{f.name: getattr(cfg, f.name) for f in dataclasses.fields(WorldModelConfig)})
+    online.check_online_config(cfg, "planet")
+    model_cfg = cfg.model_config()
     cem = CEMConfig(samples=cfg.samples, horizon=cfg.horizon, iterations=cfg.iterations,
                     elite_fraction=cfg.elite_fraction, noise=1.0)
     buffer = make_buffer(cfg.num_arenas, cfg.buffer_size, cfg.batch_size, mode="window", length=cfg.sequence_length)
@@ -143,24 +116,17 @@ def make_planet(config=None) -> TrainableAgent:
         return state.replace(memory=fresh_memory(state.spec, num_arenas))
 
     def reset(state: PlaNetState, mask) -> PlaNetState:
-        fresh = fresh_memory(state.spec, mask.shape[0])
-        keep = lambda new, old: jnp.where(mask.reshape((-1,) + (1,) * (old.ndim - 1)), new, old)
-        return state.replace(memory=jax.tree_util.tree_map(keep, fresh, state.memory))
+        return state.replace(memory=online.restart(mask, fresh_memory(state.spec, mask.shape[0]), state.memory))
 
     def plan_actions(spec: ArenaSpec, params, memory: Memory, info: Info, key, noise: float):
         """Filters the belief with ``info``'s observations and plans: ``(actions (B, ...), memory)``."""
         model = world_model(spec)
         first = info.step == 0
-        fresh = fresh_memory(spec, first.shape[0])
-        memory = jax.tree_util.tree_map(
-            lambda new, old: jnp.where(first.reshape((-1,) + (1,) * (old.ndim - 1)), new, old), fresh, memory)
-        vector, images = _observation(model, info)
-        embed = model.encoder.apply(params["encoder"], vector, images)
-        latent, _, _ = model.rssm.apply(params["rssm"], memory.latent, memory.previous_action, embed, None,
-                                        method=RSSMCell.obs_step)
+        plan = jnp.where(first.reshape((-1,) + (1,) * (memory.plan.ndim - 1)), 0.0, memory.plan)
+        latent = online.filter_belief(model, params, memory.latent, memory.previous_action, info)
         improve = cem_improve(wm.latent_model(model, params, "planet"), cem)
         plan_key, noise_key = jax.random.split(key)
-        plans = jax.vmap(improve)(latent, memory.plan, jax.random.split(plan_key, first.shape[0]))
+        plans = jax.vmap(improve)(latent, plan, jax.random.split(plan_key, first.shape[0]))
         low = jnp.asarray(spec.action.low, jnp.float32)
         high = jnp.asarray(spec.action.high, jnp.float32)
         action = plans[:, 0]
@@ -192,58 +158,31 @@ def make_planet(config=None) -> TrainableAgent:
                                 update=jnp.zeros((), jnp.int32), env_steps=jnp.zeros((), jnp.int32))
 
     def one_update(arena: Arena, ts: PlaNetTrainState):
-        spec = arena.spec
-        model = world_model(spec)
-        arena_params = arena.default_params()
-
-        def env_step(carry, xs):
-            arena_state, info, episode_return, buffer_state, memory = carry
-            index, key = xs
-            plan_key, random_key = jax.random.split(key)
-            planned, planned_memory = plan_actions(spec, ts.params, memory, info, plan_key, cfg.exploration_noise)
-            seeding = ts.env_steps + index * cfg.num_arenas < cfg.learning_starts
-            uniform = jax.vmap(spec.action.sample)(jax.random.split(random_key, cfg.num_arenas))
-            action = jnp.where(seeding, uniform, planned)
-            memory = planned_memory.replace(previous_action=wm.action_vector(spec.action, action, 1))
-            arena_state, next_info = batch_step(arena, arena_state, action, arena_params)
-            buffer_state = buffer.add(buffer_state, transition_from(info, action, next_info))
-            episode_return = episode_return + next_info.reward
-            finished = next_info.done
-            record = dict(done=finished, finished_return=jnp.where(finished, episode_return, 0.0),
-                          faulted=next_info.faulted)
-            episode_return = jnp.where(finished, 0.0, episode_return)
-            return (arena_state, next_info, episode_return, buffer_state, memory), record
-
+        model = world_model(arena.spec)
         key, rollout_key, learn_key = jax.random.split(ts.key, 3)
-        carry = (ts.arena_state, ts.info, ts.episode_return, ts.buffer, ts.memory)
-        (arena_state, info, episode_return, buffer_state, memory), record = jax.lax.scan(
-            env_step, carry,
-            (jnp.arange(cfg.rollout_length, dtype=jnp.int32), jax.random.split(rollout_key, cfg.rollout_length)))
+        choose = lambda memory, info, k: plan_actions(arena.spec, ts.params, memory, info, k, cfg.exploration_noise)
+        running = online.Collection(ts.arena_state, ts.info, ts.episode_return, ts.buffer, ts.memory)
+        running, record = online.collect(arena, cfg, buffer, running, ts.env_steps, choose, rollout_key)
         env_steps = ts.env_steps + cfg.steps_per_update
 
         def gradient_step(carry, key):
-            params, opt_state = carry
-            sample_key, loss_key = jax.random.split(key)
-            seq = wm.sequences_from_windows(spec, buffer.sample(buffer_state, sample_key).experience)
-            params, opt_state, metrics = wm.train_step(model, optimizer, params, opt_state, seq, loss_key)
-            return (params, opt_state), {k: metrics[k] for k in METRICS}
+            params, opt_state, metrics, _ = online.model_step(model, optimizer, buffer, running.buffer, *carry, key)
+            return (params, opt_state), metrics
 
         def learn(carry):
             carry, metrics = jax.lax.scan(gradient_step, carry, jax.random.split(learn_key, cfg.train_steps))
             return carry, {k: jnp.mean(v) for k, v in metrics.items()}
 
         def wait(carry):
-            return carry, {k: jnp.zeros((), jnp.float32) for k in METRICS}
+            return carry, {k: jnp.zeros((), jnp.float32) for k in online.MODEL_METRICS}
 
-        ready = (env_steps >= cfg.learning_starts) & buffer.can_sample(buffer_state)
+        ready = (env_steps >= cfg.learning_starts) & buffer.can_sample(running.buffer)
         (params, opt_state), metrics = jax.lax.cond(ready, learn, wait, (ts.params, ts.opt_state))
-        finished = jnp.sum(record["done"])
-        metrics = dict(episodes=finished, episode_return=jnp.sum(record["finished_return"]) / jnp.maximum(finished, 1),
-                       faulted_episodes=jnp.sum(record["faulted"]), **metrics)
-        ts = PlaNetTrainState(params=params, opt_state=opt_state, buffer=buffer_state, memory=memory,
-                              arena_state=arena_state, info=info, episode_return=episode_return, key=key,
-                              update=ts.update + 1, env_steps=env_steps)
-        return ts, metrics
+        ts = PlaNetTrainState(params=params, opt_state=opt_state, buffer=running.buffer, memory=running.memory,
+                              arena_state=running.arena_state, info=running.info,
+                              episode_return=running.episode_return, key=key, update=ts.update + 1,
+                              env_steps=env_steps)
+        return ts, {**online.episode_metrics(record), **metrics}
 
     def train(train_state: PlaNetTrainState, arena: Arena, num_updates: int):
         """Runs ``num_updates`` updates (static) in one ``lax.scan``; metrics have a leading update axis."""
@@ -252,15 +191,6 @@ def make_planet(config=None) -> TrainableAgent:
     agent = Agent(name="planet", init=init, act=act, reset=reset, batch_state=batch_state,
                   config=dataclasses.asdict(cfg))
     return TrainableAgent.wrap(agent, init_training=init_training, train=train, policy=policy, settings=cfg)
-
-
-def _observation(model: wm.WorldModel, info: Info):
-    """``(vector (B, D), images {key: (B, H, W, C)})`` laid out as :func:`wm.sequences_from_windows` does."""
-    rest = {k: v for k, v in info.observation.items() if k not in model.images}
-    leaves = jax.tree_util.tree_leaves(rest) + [info.goal]
-    batch = info.reward.shape[0]
-    vector = jnp.concatenate([x.reshape((batch, -1)).astype(jnp.float32) for x in leaves], -1)
-    return vector, {k: info.observation[k] for k in model.images}
 
 
 register_agent("planet", make_planet, tags=("trainable", "world-model"))

@@ -1,0 +1,148 @@
+"""What every agent that learns a world model online shares (``planet``, ``dreamer``): the collection settings,
+the belief filter, the collection rollout into a window buffer, and one model gradient step.
+
+Each update steps the B arenas ``rollout_length`` times, adding the transitions to the buffer; until
+``learning_starts`` environment steps the actions are uniform (the seed episodes), then the agent's own. The
+belief of each arena is the posterior's mode given its observations and previous actions, restarted where a new
+episode begins (``info.step == 0``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import struct
+
+from jarena.core.arena import Arena
+from jarena.core.batching import batch_step
+from jarena.core.types import Info
+from jarena.data.experience import transition_from
+from jarena_agents.config import at_least, non_negative
+from jarena_agents.world_model import model as wm
+from jarena_agents.world_model.model import WorldModelConfig
+from jarena_agents.world_model.networks import Latent, RSSMCell
+
+PyTree = Any
+MODEL_METRICS = ("model_loss", "observation_loss", "reward_loss", "continue_loss", "kl")
+
+
+@dataclasses.dataclass(frozen=True)
+class OnlineConfig(WorldModelConfig):
+    """:class:`WorldModelConfig` plus data collection and model training."""
+
+    num_arenas: int = at_least(1, default=8)
+    rollout_length: int = at_least(1, default=100)  # environment steps per arena per update
+    train_steps: int = at_least(1, default=100)  # gradient steps per update
+    batch_size: int = at_least(1, default=16)
+    sequence_length: int = at_least(2, default=50)
+    buffer_size: int = at_least(1, default=1_000_000)
+    learning_starts: int = at_least(0, default=5_000)  # environment steps of uniform actions first
+    total_steps: int = at_least(1, default=1_000_000)
+    exploration_noise: float = non_negative(0.3)  # fraction of the action half-range (planet)
+
+    @property
+    def steps_per_update(self) -> int:
+        return self.num_arenas * self.rollout_length
+
+    @property
+    def num_updates(self) -> int:
+        return max(1, self.total_steps // self.steps_per_update)
+
+    def model_config(self) -> WorldModelConfig:
+        return WorldModelConfig(**{f.name: getattr(self, f.name) for f in dataclasses.fields(WorldModelConfig)})
+
+
+def check_online_config(cfg: OnlineConfig, agent: str) -> None:
+    if cfg.buffer_size % cfg.num_arenas:
+        raise ValueError(f"{agent}: buffer_size={cfg.buffer_size} must be a multiple of num_arenas={cfg.num_arenas}")
+    if cfg.buffer_size // cfg.num_arenas < cfg.sequence_length:
+        raise ValueError(f"{agent}: each arena keeps buffer_size / num_arenas = {cfg.buffer_size // cfg.num_arenas} "
+                         f"steps, fewer than sequence_length={cfg.sequence_length}")
+
+
+def observation_inputs(model: wm.WorldModel, info: Info):
+    """``(vector (B, D), images {key: (B, H, W, C)})`` laid out as :func:`wm.sequences_from_windows` does."""
+    rest = {k: v for k, v in info.observation.items() if k not in model.images}
+    leaves = jax.tree_util.tree_leaves(rest) + [info.goal]
+    batch = info.reward.shape[0]
+    vector = jnp.concatenate([x.reshape((batch, -1)).astype(jnp.float32) for x in leaves], -1)
+    return vector, {k: info.observation[k] for k in model.images}
+
+
+def restart(first: jax.Array, fresh: PyTree, current: PyTree) -> PyTree:
+    """``fresh`` where ``first`` (B,) is set, else ``current``, leafwise."""
+    return jax.tree_util.tree_map(
+        lambda new, old: jnp.where(first.reshape((-1,) + (1,) * (old.ndim - 1)), new, old), fresh, current)
+
+
+def filter_belief(model: wm.WorldModel, params: dict, latent: Latent, previous_action: jax.Array,
+                  info: Info) -> Latent:
+    """The belief (B,) after ``info``'s observations: restarted at new episodes, then the posterior's mode."""
+    first = info.step == 0
+    latent = restart(first, model.initial(first.shape), latent)
+    previous_action = jnp.where(first[:, None], 0.0, previous_action)
+    vector, images = observation_inputs(model, info)
+    embed = model.encoder.apply(params["encoder"], vector, images)
+    latent, _, _ = model.rssm.apply(params["rssm"], latent, previous_action, embed, None, method=RSSMCell.obs_step)
+    return latent
+
+
+@struct.dataclass
+class Collection:
+    """The running collection: arenas, their infos and running returns, the buffer, the agent's memory."""
+
+    arena_state: Any
+    info: Info
+    episode_return: jax.Array  # (B,)
+    buffer: Any
+    memory: Any
+
+
+def collect(arena: Arena, cfg: OnlineConfig, buffer, running: Collection, env_steps: jax.Array,
+            choose: Callable, key: jax.Array) -> tuple[Collection, dict]:
+    """``cfg.rollout_length`` steps of the arenas: ``choose(memory, info, key) -> (action, memory)`` acts, uniform
+    actions replace it before ``learning_starts``; returns the collection and the per-step episode records."""
+    spec = arena.spec
+    params = arena.default_params()
+
+    def step(running: Collection, xs):
+        index, key = xs
+        choose_key, random_key = jax.random.split(key)
+        chosen, memory = choose(running.memory, running.info, choose_key)
+        seeding = env_steps + index * cfg.num_arenas < cfg.learning_starts
+        uniform = jax.vmap(spec.action.sample)(jax.random.split(random_key, cfg.num_arenas))
+        action = jnp.where(seeding, uniform, chosen)
+        memory = memory.replace(previous_action=wm.action_vector(spec.action, action, 1))
+        arena_state, after = batch_step(arena, running.arena_state, action, params)
+        buffer_state = buffer.add(running.buffer, transition_from(running.info, action, after))
+        episode_return = running.episode_return + after.reward
+        record = dict(done=after.done, finished_return=jnp.where(after.done, episode_return, 0.0),
+                      faulted=after.faulted)
+        return Collection(arena_state, after, jnp.where(after.done, 0.0, episode_return), buffer_state,
+                          memory), record
+
+    steps = (jnp.arange(cfg.rollout_length, dtype=jnp.int32), jax.random.split(key, cfg.rollout_length))
+    return jax.lax.scan(step, running, steps)
+
+
+def episode_metrics(record: dict) -> dict:
+    """``episodes``, ``episode_return`` (mean over the episodes that ended) and ``faulted_episodes``."""
+    finished = jnp.sum(record["done"])
+    return dict(episodes=finished, episode_return=jnp.sum(record["finished_return"]) / jnp.maximum(finished, 1),
+                faulted_episodes=jnp.sum(record["faulted"]))
+
+
+def model_step(model: wm.WorldModel, optimizer, buffer, buffer_state, params: dict, opt_state, key: jax.Array):
+    """One world-model gradient step on a window batch: ``(params, opt_state, metrics, posterior latents (S, L+1))``."""
+    sample_key, loss_key = jax.random.split(key)
+    seq = wm.sequences_from_windows(model.spec, buffer.sample(buffer_state, sample_key).experience)
+    (_, (metrics, latents)), grads = jax.value_and_grad(wm.loss, argnums=1, has_aux=True)(model, params, seq,
+                                                                                          loss_key)
+    updates, opt_state = optimizer.update(grads, opt_state, params)
+    params = optax.apply_updates(params, updates)
+    return params, opt_state, {k: metrics[k] for k in MODEL_METRICS}, latents
