@@ -262,15 +262,9 @@ def make_dreamer(config=None) -> TrainableAgent:
             learner, behaviour_metrics = behaviour_step(spec, learner, jax.lax.stop_gradient(starts), behaviour_key)
             return learner, {**model_metrics, **behaviour_metrics}
 
-        def learn(learner):
-            learner, metrics = jax.lax.scan(gradient_step, learner, jax.random.split(learn_key, cfg.train_steps))
-            return learner, {k: jnp.mean(v) for k, v in metrics.items()}
-
-        def wait(learner):
-            return learner, {k: jnp.zeros((), jnp.float32) for k in online.MODEL_METRICS + BEHAVIOUR_METRICS}
-
         ready = (env_steps >= cfg.learning_starts) & buffer.can_sample(running.buffer)
-        learner, metrics = jax.lax.cond(ready, learn, wait, ts.learner)
+        learner, metrics = online.learn_when_ready(ready, gradient_step, ts.learner, learn_key, cfg.train_steps,
+                                                   online.MODEL_METRICS + BEHAVIOUR_METRICS)
         ts = DreamerTrainState(learner=learner, buffer=running.buffer, memory=running.memory,
                                arena_state=running.arena_state, info=running.info,
                                episode_return=running.episode_return, key=key, update=ts.update + 1,

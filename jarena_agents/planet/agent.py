@@ -169,15 +169,9 @@ def make_planet(config=None) -> TrainableAgent:
             params, opt_state, metrics, _ = online.model_step(model, optimizer, buffer, running.buffer, *carry, key)
             return (params, opt_state), metrics
 
-        def learn(carry):
-            carry, metrics = jax.lax.scan(gradient_step, carry, jax.random.split(learn_key, cfg.train_steps))
-            return carry, {k: jnp.mean(v) for k, v in metrics.items()}
-
-        def wait(carry):
-            return carry, {k: jnp.zeros((), jnp.float32) for k in online.MODEL_METRICS}
-
         ready = (env_steps >= cfg.learning_starts) & buffer.can_sample(running.buffer)
-        (params, opt_state), metrics = jax.lax.cond(ready, learn, wait, (ts.params, ts.opt_state))
+        (params, opt_state), metrics = online.learn_when_ready(ready, gradient_step, (ts.params, ts.opt_state),
+                                                               learn_key, cfg.train_steps, online.MODEL_METRICS)
         ts = PlaNetTrainState(params=params, opt_state=opt_state, buffer=running.buffer, memory=running.memory,
                               arena_state=running.arena_state, info=running.info,
                               episode_return=running.episode_return, key=key, update=ts.update + 1,

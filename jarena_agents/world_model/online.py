@@ -146,3 +146,17 @@ def model_step(model: wm.WorldModel, optimizer, buffer, buffer_state, params: di
     updates, opt_state = optimizer.update(grads, opt_state, params)
     params = optax.apply_updates(params, updates)
     return params, opt_state, {k: metrics[k] for k in MODEL_METRICS}, latents
+
+
+def learn_when_ready(ready: jax.Array, gradient_step: Callable, carry: PyTree, key: jax.Array, steps: int,
+                     metric_names: tuple[str, ...]) -> tuple[PyTree, dict]:
+    """``steps`` of ``gradient_step(carry, key) -> (carry, metrics)`` in a ``lax.scan`` where ``ready`` (a bool
+    scalar: enough data), else ``carry`` unchanged; returns the carry and the metrics averaged (zeros if not)."""
+    def learn(carry):
+        carry, metrics = jax.lax.scan(gradient_step, carry, jax.random.split(key, steps))
+        return carry, {k: jnp.mean(v) for k, v in metrics.items()}
+
+    def wait(carry):
+        return carry, {k: jnp.zeros((), jnp.float32) for k in metric_names}
+
+    return jax.lax.cond(ready, learn, wait, carry)
