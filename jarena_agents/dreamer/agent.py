@@ -28,7 +28,7 @@ from jarena.data.buffer_state import BufferState
 from jarena.data.experience import experience_spec
 from jarena_agents.config import at_least, in_unit_interval, make_config, non_negative, positive
 from jarena_agents.dreamer import losses
-from jarena_agents.networks import Gaussian
+from jarena_agents.networks import Gaussian, to_env_action
 from jarena_agents.planners.model import check_action_spec
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
@@ -130,12 +130,6 @@ def make_dreamer(config=None) -> TrainableAgent:
     def critic() -> Head:
         return Head(cfg.bins, cfg.hidden, cfg.layers, zero_init=True)
 
-    def to_env(spec: ArenaSpec, unit: jax.Array) -> jax.Array:
-        low = jnp.asarray(spec.action.low, jnp.float32)
-        high = jnp.asarray(spec.action.high, jnp.float32)
-        unit = unit.reshape(unit.shape[:-1] + tuple(spec.action.shape))
-        return (low + (unit + 1.0) * 0.5 * (high - low)).astype(spec.action.dtype)
-
     def fresh_memory(spec: ArenaSpec, num_arenas: int) -> Memory:
         model = world_model(spec)
         return Memory(latent=model.initial((num_arenas,)),
@@ -165,8 +159,7 @@ def make_dreamer(config=None) -> TrainableAgent:
         model = world_model(spec)
         latent = online.filter_belief(model, params["model"], memory.latent, memory.previous_action, info)
         policy = bounded_normal(actor(spec).apply(params["actor"], latent.features()))
-        unit = policy.unit(policy.mode() if deterministic else policy.sample(key))
-        action = to_env(spec, unit)
+        action = to_env_action(spec.action, policy.mode() if deterministic else policy.sample(key), policy)
         return action, Memory(latent=latent, previous_action=wm.action_vector(spec.action, action, 1))
 
     def act(state: DreamerState, info: Info, key, privileged=None):
@@ -202,7 +195,7 @@ def make_dreamer(config=None) -> TrainableAgent:
             action_key, model_key = jax.random.split(key)
             dist = bounded_normal(net.apply(learner.actor, latent.features()))
             raw = dist.sample(action_key)
-            action = wm.action_vector(spec.action, to_env(spec, dist.unit(raw)), 1)  # in the buffer's units
+            action = wm.action_vector(spec.action, to_env_action(spec.action, raw, dist), 1)  # the buffer's units
             following, _ = model.rssm.apply(learner.model["rssm"], latent, action, model_key,
                                             method=RSSMCell.img_step)
             return following, (latent, raw)

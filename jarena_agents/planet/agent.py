@@ -122,7 +122,7 @@ def make_planet(config=None) -> TrainableAgent:
         """Filters the belief with ``info``'s observations and plans: ``(actions (B, ...), memory)``."""
         model = world_model(spec)
         first = info.step == 0
-        plan = jnp.where(first.reshape((-1,) + (1,) * (memory.plan.ndim - 1)), 0.0, memory.plan)
+        plan = online.restart(first, jnp.zeros_like(memory.plan), memory.plan)
         latent = online.filter_belief(model, params, memory.latent, memory.previous_action, info)
         improve = cem_improve(wm.latent_model(model, params, "planet"), cem)
         plan_key, noise_key = jax.random.split(key)

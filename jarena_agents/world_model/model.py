@@ -291,13 +291,20 @@ def model_optimizer(config: WorldModelConfig) -> optax.GradientTransformation:
                        optax.adam(config.model_learning_rate, eps=1e-8))
 
 
+def gradient_step(model: WorldModel, optimizer: optax.GradientTransformation, params: dict, opt_state,
+                  seq: Sequences, key: jax.Array):
+    """One gradient step on :func:`loss`: ``(params, opt_state, metrics, posterior latents (B, T))``; the
+    latents are where Dreamer starts imagining. Pure; the caller jits."""
+    (_, (metrics, latents)), grads = jax.value_and_grad(loss, argnums=1, has_aux=True)(model, params, seq, key)
+    updates, opt_state = optimizer.update(grads, opt_state, params)
+    metrics["grad_norm"] = optax.global_norm(grads)
+    return optax.apply_updates(params, updates), opt_state, metrics, latents
+
+
 def train_step(model: WorldModel, optimizer: optax.GradientTransformation, params: dict, opt_state,
                seq: Sequences, key: jax.Array):
     """One gradient step on :func:`loss`: ``(params, opt_state, metrics)``. Pure; the caller jits."""
-    (_, (metrics, _)), grads = jax.value_and_grad(loss, argnums=1, has_aux=True)(model, params, seq, key)
-    updates, opt_state = optimizer.update(grads, opt_state, params)
-    metrics["grad_norm"] = optax.global_norm(grads)
-    return optax.apply_updates(params, updates), opt_state, metrics
+    return gradient_step(model, optimizer, params, opt_state, seq, key)[:3]
 
 
 def latent_model(model: WorldModel, params: dict, name: str = "world model") -> Model:

@@ -15,13 +15,13 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-import optax
 from flax import struct
 
 from jarena.core.arena import Arena
 from jarena.core.batching import batch_step
 from jarena.core.types import Info
 from jarena.data.experience import transition_from
+from jarena_agents import networks
 from jarena_agents.config import at_least, non_negative
 from jarena_agents.world_model import model as wm
 from jarena_agents.world_model.model import WorldModelConfig
@@ -67,11 +67,8 @@ def check_online_config(cfg: OnlineConfig, agent: str) -> None:
 
 def observation_inputs(model: wm.WorldModel, info: Info):
     """``(vector (B, D), images {key: (B, H, W, C)})`` laid out as :func:`wm.sequences_from_windows` does."""
-    rest = {k: v for k, v in info.observation.items() if k not in model.images}
-    leaves = jax.tree_util.tree_leaves(rest) + [info.goal]
-    batch = info.reward.shape[0]
-    vector = jnp.concatenate([x.reshape((batch, -1)).astype(jnp.float32) for x in leaves], -1)
-    return vector, {k: info.observation[k] for k in model.images}
+    split = networks.split_observation(info, model.images)
+    return split["vector"], split["images"]
 
 
 def restart(first: jax.Array, fresh: PyTree, current: PyTree) -> PyTree:
@@ -141,10 +138,7 @@ def model_step(model: wm.WorldModel, optimizer, buffer, buffer_state, params: di
     """One world-model gradient step on a window batch: ``(params, opt_state, metrics, posterior latents (S, L+1))``."""
     sample_key, loss_key = jax.random.split(key)
     seq = wm.sequences_from_windows(model.spec, buffer.sample(buffer_state, sample_key).experience)
-    (_, (metrics, latents)), grads = jax.value_and_grad(wm.loss, argnums=1, has_aux=True)(model, params, seq,
-                                                                                          loss_key)
-    updates, opt_state = optimizer.update(grads, opt_state, params)
-    params = optax.apply_updates(params, updates)
+    params, opt_state, metrics, latents = wm.gradient_step(model, optimizer, params, opt_state, seq, loss_key)
     return params, opt_state, {k: metrics[k] for k in MODEL_METRICS}, latents
 
 
