@@ -10,7 +10,7 @@ composable transforms; everything builds from a string::
 
 from jarena import _headless  # noqa: F401, I001  (first: picks MuJoCo's headless GL before mujoco is imported)
 from jarena import arenas as _arenas  # noqa: F401  (registers the built-in builders)
-from jarena import data, sensors, tasks, testing, tools
+from jarena import data, distributed, sensors, tasks, testing, tools
 from jarena.building import (
     ArenaStringError,
     build_arena,
@@ -42,7 +42,8 @@ __all__ = [
     "Discrete", "Dynamics", "EvalResult", "Final", "Recording", "Info", "Outcome", "Sensor", "SensorMemory",
     "SpecError", "Task",
     "TrainResult", "Trajectory", "TrajectoryDataset", "Transition", "auto_reset", "batch_reset", "batch_step",
-    "build_arena", "chain", "collect", "data", "evaluate", "list_arenas", "make_buffer", "parse_arena_string",
-    "perform_parallel", "record_video", "register_arena_builder", "register_task", "register_tool", "retrieve_config",
+    "build_arena", "chain", "collect", "data", "distributed", "evaluate", "list_arenas", "make_buffer",
+    "parse_arena_string", "perform_parallel", "record_video", "register_arena_builder", "register_task",
+    "register_tool", "retrieve_config",
     "run", "sensors", "spec", "tasks", "testing", "tools", "train_and_evaluate", "validate",
 ]

@@ -35,6 +35,12 @@ def _from_storable(stored: dict[str, Any], template):
     return jax.tree_util.tree_unflatten(treedef, out)
 
 
+def _abstract(t) -> jax.ShapeDtypeStruct:
+    """What a restored leaf looks like: the template's shape, dtype and, for a device array, its layout on the
+    devices (a run on a mesh restores its sharded state as it was laid out)."""
+    return jax.ShapeDtypeStruct(t.shape, t.dtype, sharding=t.sharding if isinstance(t, jax.Array) else None)
+
+
 class Checkpointer:
     """Saves and restores training states under ``directory`` by integer step.
 
@@ -65,7 +71,7 @@ class Checkpointer:
         step = self.latest_step() if step is None else step
         if step is None:
             raise FileNotFoundError(f"no checkpoint in {self.directory}")
-        abstract = jax.tree_util.tree_map(lambda t: jax.ShapeDtypeStruct(t.shape, t.dtype), _to_storable(template))
+        abstract = jax.tree_util.tree_map(_abstract, _to_storable(template))
         restored = self.manager.restore(step, args=ocp.args.Composite(state=ocp.args.StandardRestore(abstract),
                                                                       metadata=ocp.args.JsonRestore()))
         return _from_storable(restored["state"], template), dict(restored["metadata"] or {})

@@ -197,13 +197,32 @@ def _restore_policy(agent, arena, run_dir: str, select: str = "best"):
     return agent.policy(state, arena.spec, True)
 
 
+def _launch(args):
+    """The multi-process launch the flags (or the JARENA_* variables) describe, or None for one process."""
+    from jarena import distributed
+
+    given = {"--coordinator": args.coordinator, "--num-processes": args.num_processes,
+             "--process-id": args.process_id}
+    if all(v is None for v in given.values()):
+        return distributed.launch_from_environment()
+    missing = [flag for flag, v in given.items() if v is None]
+    if missing:
+        raise ValueError(f"a multi-process launch needs --coordinator, --num-processes and --process-id; missing "
+                         f"{', '.join(missing)}")
+    return distributed.Launch(args.coordinator, args.num_processes, args.process_id)
+
+
 def _cmd_train(args) -> int:
+    from jarena import distributed
+
+    distributed.initialize(_launch(args))  # before any computation: every process joins the run
     import jax
 
     import jarena
     import jarena_agents
     from jarena.training import train_and_evaluate
 
+    say = print if distributed.is_main_process() else (lambda *a, **k: None)
     arena = jarena.build_arena(args.arena)
     config = _agent_config(args, arena)
     if args.steps is not None:
@@ -212,17 +231,19 @@ def _cmd_train(args) -> int:
     settings = getattr(agent, "settings", None)
     steps = settings.total_steps if settings is not None else args.steps
     unit = getattr(settings, "step_unit", "environment steps")  # bc: gradient updates
-    print(f"training {agent.name!r} on {args.arena!r} for {steps} {unit} "
-          f"on {jax.devices()[0].platform} (seed {args.seed})", flush=True)
+    mesh = distributed.mesh(args.devices)
+    where = (f"{mesh.devices.size} {jax.default_backend()} device(s)" if jax.process_count() == 1 else
+             f"{mesh.devices.size} {jax.default_backend()} devices of {jax.process_count()} processes")
+    say(f"training {agent.name!r} on {args.arena!r} for {steps} {unit} on {where} (seed {args.seed})", flush=True)
     result = train_and_evaluate(agent, arena, jax.random.key(args.seed), run_dir=args.run_dir,
                                 progress=not args.no_progress, select=args.select,
-                                eval_videos=_count(args.videos, "--videos"))
+                                eval_videos=_count(args.videos, "--videos"), devices=args.devices)
     last = result.history[-1]
-    print(f"trained {last['env_steps']} steps in {last['seconds']:.1f} s "
+    say(f"trained {last['env_steps']} steps in {last['seconds']:.1f} s "
           f"({last['env_steps'] / max(last['seconds'], 1e-9):.3g} steps/s, compile included)")
-    print(result.evaluation.table())
+    say(result.evaluation.table())
     if args.run_dir:
-        print(f"run directory: {args.run_dir} (config, train.csv, validation.csv, evaluation.json, "
+        say(f"run directory: {args.run_dir} (config, train.csv, validation.csv, evaluation.json, "
               "learning_curve.png" + (", videos/" if Path(args.run_dir, "videos").is_dir() else "") + ")")
     return 0
 
@@ -328,6 +349,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help="film the first N eval episodes into RUN_DIR/videos (0: none); written after the results, "
                         "so a missing encoder or renderer costs only the videos")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    group = p.add_argument_group(
+        "devices and processes",
+        "Data-parallel training: the arenas are split over the devices, the networks replicated, and the run "
+        "computes what it computes on one device. For several processes (hosts), start the same command in "
+        "each with its --process-id (or set JARENA_COORDINATOR, JARENA_NUM_PROCESSES, JARENA_PROCESS_ID; JAX "
+        "also reads SLURM's variables); process 0 writes the run directory, all write checkpoints, so it must "
+        "be on a filesystem all processes share.")
+    group.add_argument("--devices", default=None, metavar="N|all",
+                       help="devices to train on: 'all', or a count (default: all in a multi-process run, else 1)")
+    group.add_argument("--coordinator", default=None, metavar="HOST:PORT",
+                       help="address of process 0's coordination service")
+    group.add_argument("--num-processes", type=int, default=None, metavar="N", help="processes in the run")
+    group.add_argument("--process-id", type=int, default=None, metavar="I", help="this process, 0 .. N-1")
     p.set_defaults(fn=_cmd_train)
 
     p = sub.add_parser("evaluate", help="evaluate an agent on an arena's fixed episodes and print a results table",

@@ -27,6 +27,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from jarena import distributed
 from jarena.checkpoint import Checkpointer
 from jarena.core.arena import Arena
 from jarena.render.frames import RenderError, can_render
@@ -109,7 +110,8 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
                        chunk_updates: int | None = None, validate_every: int | None = None,
                        validations: int = 10, select: str = "best", checkpoint_every: int | None = None,
                        run_dir: str | Path | None = None, progress: bool = True,
-                       stop_after_chunks: int | None = None, eval_videos: int = 2) -> TrainResult:
+                       stop_after_chunks: int | None = None, eval_videos: int = 2,
+                       devices: int | str | None = None) -> TrainResult:
     """Trains ``agent`` on ``arena``, validating periodically, and evaluates the selected policy on the eval
     episodes.
 
@@ -139,6 +141,12 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
         their physics states on device and renders them on the host afterwards, once the results are
         written; an arena without a renderer is filmed not at all, and a renderer or encoder that fails
         is a warning naming the fix, never a lost result. 0 disables.
+      devices: train data-parallel on a mesh of this many devices (:func:`jarena.distributed.mesh`):
+        ``"all"``, a count, or ``None`` (all devices of a multi-process run, else one). The arena batch
+        is split over them and the rest replicated; the run computes what it computes on one device (up to
+        the order of float sums). In a multi-process run (:func:`jarena.distributed.initialize`) every
+        process calls this alike; only process 0 writes to ``run_dir`` and shows progress, and checkpoints
+        are written and restored by all.
     """
     _check_trainable(agent)
     rule = selection(select)
@@ -153,16 +161,20 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
     num_chunks, chunk_updates, validate_every = training_schedule(agent.settings, total_steps, chunk_updates,
                                                                   validate_every, validations)
     num_updates = num_chunks * chunk_updates
+    mesh = distributed.mesh(devices)
+    main = distributed.is_main_process()
+    progress = progress and main
     run_path = Path(run_dir) if run_dir is not None else None
-    if run_path is not None:
-        run_path.mkdir(parents=True, exist_ok=True)
-        (run_path / "config.json").write_text(json.dumps(
+    log_path = run_path if main else None  # checkpoints are written by every process, the rest by process 0
+    if log_path is not None:
+        log_path.mkdir(parents=True, exist_ok=True)
+        (log_path / "config.json").write_text(json.dumps(
             {"agent": agent.name, "arena": arena.build_string or arena.name, "config": agent.config,
              "total_steps": total_steps, "select": select, "jax": jax.__version__,
-             "device": str(jax.devices()[0])}, indent=2, default=str))
+             "device": str(jax.devices()[0]), "devices": int(mesh.devices.size),
+             "processes": jax.process_count()}, indent=2, default=str))
 
-    train_state = jax.jit(agent.init_training, static_argnums=1)(key, arena)
-    chunk = jax.jit(agent.train, static_argnums=(1, 2), donate_argnums=0)
+    train_state, chunk = _compiled_training(agent, arena, key, mesh)
     history, validations_done = [], []
     checkpoint_every = 5 if checkpoint_every is None else checkpoint_every
     checkpointer = Checkpointer(run_path / "checkpoints") if run_path is not None and checkpoint_every else None
@@ -173,9 +185,9 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
         train_state, meta = checkpointer.restore(train_state, first_chunk)
         history, validations_done = meta.get("history", []), meta.get("validations", [])
         keeper.resume(train_state, first_chunk)
-        print(f"resuming from step {first_chunk * chunk_updates * steps_per_update} of "
-              f"{num_updates * steps_per_update} (checkpoint {checkpointer.directory / str(first_chunk)})", flush=True)
-    writer = _TensorBoard(run_path / "tensorboard") if run_path is not None else None
+        _say(main, f"resuming from step {first_chunk * chunk_updates * steps_per_update} of "
+              f"{num_updates * steps_per_update} (checkpoint {checkpointer.directory / str(first_chunk)})")
+    writer = _TensorBoard(log_path / "tensorboard") if log_path is not None else None
     bar = _progress(num_updates * steps_per_update, progress)
     bar.update(first_chunk * chunk_updates * steps_per_update, history[-1]["episode_return"] if history else 0.0)
     start = time.perf_counter() - (history[-1]["seconds"] if history else 0.0)
@@ -203,25 +215,56 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
             writer.log("train", row)
         if validate_every and ((index + 1) % validate_every == 0 or index + 1 == num_chunks):
             result = validate(agent, arena, jax.random.key(index),
-                              agent_state=agent.policy(train_state, arena.spec, True))
+                              agent_state=_local_policy(agent.policy(train_state, arena.spec, True), mesh),
+                              devices=devices)
             validations_done.append({"update": done_updates, "env_steps": row["env_steps"], **result.summary()})
             if writer is not None:
                 writer.log("validation", validations_done[-1])
             kept = keeper.offer(train_state, index + 1, validations_done[-1])
             bar.note(f"validation return {validations_done[-1]['return_mean']:.1f} at step {row['env_steps']}"
                      + (" (best so far: kept)" if kept else ""))
-        if run_path is not None:  # the curves so far survive a run that is stopped or killed
-            _write_csv(run_path / "train.csv", history)
-            _write_csv(run_path / "validation.csv", validations_done)
+        if log_path is not None:  # the curves so far survive a run that is stopped or killed
+            _write_csv(log_path / "train.csv", history)
+            _write_csv(log_path / "validation.csv", validations_done)
         if checkpointer is not None and ((index + 1) % checkpoint_every == 0 or index + 1 == num_chunks):
             checkpointer.save(index + 1, train_state, {"history": history, "validations": validations_done})
     close()
     policy, selected = keeper.choice(train_state, history[-1] if history else None,
                                      validations_done[-1] if validations_done else None)
-    evaluation = _evaluate_and_write(agent, arena, policy, selected, run_path, eval_videos, history,
-                                     validations_done)
+    evaluation = _evaluate_and_write(agent, arena, _local_policy(policy, mesh), selected, log_path, eval_videos,
+                                     history, validations_done, devices)
     return TrainResult(train_state=train_state, history=history, validations=validations_done,
                        evaluation=evaluation, policy=policy, selected=selected)
+
+
+def _compiled_training(agent, arena: Arena, key: jax.Array, mesh):
+    """``(train_state, chunk)``: the initial train state laid out on ``mesh`` (arena batch split, the rest
+    replicated) and the jitted chunk of updates that keeps that layout (its input donated).
+
+    The key enters as raw key data (a host value, the same in every process) and is re-wrapped inside.
+    """
+    key_data, impl = np.asarray(jax.random.key_data(key)), jax.random.key_impl(key)
+
+    def init(data):
+        return agent.init_training(jax.random.wrap_key_data(data, impl=impl), arena)
+
+    shardings = distributed.batch_shardings(jax.eval_shape(init, key_data), mesh,
+                                            getattr(agent.settings, "num_arenas", None))
+    train_state = jax.jit(init, out_shardings=shardings)(key_data)
+    chunk = jax.jit(agent.train, static_argnums=(1, 2), donate_argnums=0, in_shardings=(shardings,),
+                    out_shardings=(shardings, distributed.replicated(mesh)))
+    return train_state, chunk
+
+
+def _local_policy(policy, mesh):
+    """The policy as host arrays when training spans several devices (validation and evaluation take host
+    values, the same in every process, as their inputs); as it is on one device."""
+    return policy if mesh.devices.size == 1 else distributed.fetch(policy)
+
+
+def _say(main: bool, text: str) -> None:
+    if main:
+        print(text, flush=True)
 
 
 def training_schedule(settings, total_steps: int | None, chunk_updates: int | None, validate_every: int | None,
@@ -263,7 +306,7 @@ class _BestPolicy:
         if self.rule.replaces is None or not self.rule.replaces(row["return_mean"],
                                                                  None if self.row is None else self.row["return_mean"]):
             return False
-        self.policy = jax.device_get(self.agent.policy(train_state, self.arena.spec, True))
+        self.policy = distributed.fetch(self.agent.policy(train_state, self.arena.spec, True))
         self.row, self.chunk = row, chunk
         if self.saver is not None:
             self.saver.save(chunk, self.policy, {"validation": row})
@@ -276,7 +319,7 @@ class _BestPolicy:
             return
         template = self.agent.policy(train_state, self.arena.spec, True)
         policy, meta = self.saver.restore(template)
-        self.policy, self.row, self.chunk = jax.device_get(policy), meta["validation"], self.saver.latest_step()
+        self.policy, self.row, self.chunk = distributed.fetch(policy), meta["validation"], self.saver.latest_step()
 
     def choice(self, train_state, last_row: dict | None, last_validation: dict | None):
         """``(policy, selected)``: the kept policy, or the final one when none was kept."""
@@ -298,7 +341,7 @@ class _BestPolicy:
 
 
 def _evaluate_and_write(agent, arena: Arena, policy, selected: dict, run_path: Path | None, eval_videos: int,
-                        history, validations) -> EvalResult:
+                        history, validations, devices=None) -> EvalResult:
     """Evaluates ``policy`` on the eval split and writes the results; videos come last, and a failure in
     rendering or encoding them is a warning (the results are already on disk)."""
     videos = 0
@@ -308,7 +351,8 @@ def _evaluate_and_write(agent, arena: Arena, policy, selected: dict, run_path: P
             videos = min(int(eval_videos), arena.num_eval_episodes)
         except RenderError as e:
             warnings.warn(f"evaluating without videos: {e}", stacklevel=3)
-    evaluation, physics = run_episodes(agent, arena, jax.random.key(0), agent_state=policy, filmed=videos)
+    evaluation, physics = run_episodes(agent, arena, jax.random.key(0), agent_state=policy, filmed=videos,
+                                       devices=devices)
     evaluation = dataclasses.replace(evaluation, selected=selected)
     if run_path is None:
         return evaluation

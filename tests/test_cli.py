@@ -45,6 +45,26 @@ def test_train_prints_progress_and_table(capsys, tmp_path):
     assert "no checkpoint found" in capsys.readouterr().err
 
 
+def test_train_names_bad_device_and_launch_flags(capsys, monkeypatch):
+    for var in ("JARENA_COORDINATOR", "JARENA_NUM_PROCESSES", "JARENA_PROCESS_ID"):
+        monkeypatch.delenv(var, raising=False)
+    assert main(["train", "ppo", "classic|domain:cartpole", "--steps", "64", "--coordinator", "localhost:1234"]) == 2
+    assert "missing --num-processes, --process-id" in capsys.readouterr().err
+    assert main(["train", "ppo", "classic|domain:cartpole", "--steps", "64", "--coordinator", "localhost",
+                 "--num-processes", "2", "--process-id", "0"]) == 2
+    assert "HOST:PORT" in capsys.readouterr().err
+    assert main(["train", "ppo", "classic|domain:cartpole", "--steps", "64", "--devices", "many"]) == 2
+    assert "'all' or a positive integer" in capsys.readouterr().err
+
+
+def test_train_help_explains_devices_and_processes(capsys):
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    out = capsys.readouterr().out
+    for flag in ("--devices", "--coordinator", "--num-processes", "--process-id", "JARENA_COORDINATOR"):
+        assert flag in out
+
+
 PENDULUM = "classic|domain:pendulum,task:swingup"
 
 

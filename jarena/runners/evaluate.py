@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jarena import distributed
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena
 from jarena.core.batching import batch_reset
@@ -25,15 +26,21 @@ PyTree = Any
 
 @functools.lru_cache(maxsize=64)
 def _compiled_episodes(agent: Agent, arena: Arena, num: int, max_steps: int, params_axis: int | None,
-                       filmed: int = 0):
-    """A jitted ``(key, agent_state, params, ids) -> per-episode arrays`` for ``num`` episodes.
+                       filmed: int = 0, mesh=None, key_impl=None):
+    """A jitted ``(key_data, agent_state, params, ids) -> per-episode arrays`` for ``num`` episodes.
 
     With ``filmed > 0`` it also keeps the physics states of the first ``filmed`` arenas at every step,
-    ``physics``: (max_steps + 1, filmed, ...), the reset state first (frozen after an episode ends).
+    ``physics``: (max_steps + 1, filmed, ...), the reset state first (frozen after an episode ends). With a
+    ``mesh`` of several devices the episodes are split over them (``num`` divides evenly).
     """
+    split = None if mesh is None else distributed.batch_shardings
+    constrain = ((lambda tree: jax.lax.with_sharding_constraint(tree, split(tree, mesh, num))) if split
+                 else (lambda tree: tree))
 
-    def episodes(key, agent_state, params, ids):
+    def episodes(key_data, agent_state, params, ids):
+        key = jax.random.wrap_key_data(key_data, impl=key_impl)
         state, info = batch_reset(arena, None, num, params, params_axis=params_axis, episodes=ids)
+        state, info, agent_state = constrain((state, info, agent_state))
         zeros = jnp.zeros((num,), jnp.float32)
         film = None
         if filmed:
@@ -54,6 +61,7 @@ def _compiled_episodes(agent: Agent, arena: Arena, num: int, max_steps: int, par
             ret = ret + jnp.where(valid, info.reward, 0.0)  # a faulted step's reward is 0: returns stay finite
             length = length + valid.astype(jnp.int32)
             fault = fault | jnp.where(valid, info.fault, 0)  # the episode's faults (the step that ended it)
+            state, info, agent_state = constrain((state, info, agent_state))
             if filmed:
                 film = jax.tree_util.tree_map(lambda f, x: f.at[t + 1].set(x[:filmed]), film, state.physics)
             return state, info, agent_state, done | info.done, ret, length, t + 1, film, fault
@@ -65,13 +73,19 @@ def _compiled_episodes(agent: Agent, arena: Arena, num: int, max_steps: int, par
             out["physics"] = film
         return out
 
-    return jax.jit(episodes)
+    return jax.jit(episodes, out_shardings=None if mesh is None else distributed.replicated(mesh))
+
+
+def _pad(tree: PyTree, size: int) -> PyTree:
+    """``tree``'s leaves (leading axis N) padded to ``size`` rows by repeating the last."""
+    return jax.tree_util.tree_map(
+        lambda x: np.concatenate([np.asarray(x), np.repeat(np.asarray(x)[-1:], size - len(x), axis=0)]), tree)
 
 
 def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_state: PyTree = None,
                  params: ArenaParams | None = None, params_axis: int | None = None, split: str = "eval",
-                 episodes: Any = None, max_steps: int | None = None, filmed: int = 0
-                 ) -> tuple[EvalResult, PyTree]:
+                 episodes: Any = None, max_steps: int | None = None, filmed: int = 0,
+                 devices: int | str | None = None) -> tuple[EvalResult, PyTree]:
     """:func:`evaluate`, also returning the physics states of the first ``filmed`` episodes on device,
     (max_steps + 1, filmed, ...) with the reset state first, or ``None`` when ``filmed == 0``."""
     agent.check_fits(arena)  # an AgentArenaMismatch before compiling (cached per agent and arena)
@@ -90,14 +104,24 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
         raise ValueError(f"arena {arena.name!r} has no time limit; pass max_steps to evaluate")
     key = jax.random.key(0) if key is None else key
     params = arena.default_params() if params is None else params
+    mesh = distributed.mesh(devices)
+    count = mesh.devices.size
+    num = -(-ids.size // count) * count  # padded to split evenly; the padding's results are dropped
+    run_ids = _pad(ids, num) if num > ids.size else ids
+    if num > ids.size and params_axis is not None:
+        params = jax.tree_util.tree_map(lambda x: np.moveaxis(_pad(np.moveaxis(np.asarray(x), params_axis, 0), num),
+                                                              0, params_axis), params)
     if agent_state is None:
-        agent_state = agent.init(jax.random.fold_in(key, 0x1A1), arena.spec, int(ids.size))
+        agent_state = agent.init(jax.random.fold_in(key, 0x1A1), arena.spec, num)
     else:
-        agent_state = agent.batch_state(agent_state, int(ids.size))
-    out = _compiled_episodes(agent, arena, int(ids.size), int(max_steps), params_axis, int(filmed))(
-        key, agent_state, params, jnp.asarray(ids))
+        agent_state = agent.batch_state(agent_state, num)
+    if count > 1:  # host values, the same in every process, become the mesh's global inputs
+        agent_state, params = distributed.fetch((agent_state, params))
+    out = _compiled_episodes(agent, arena, num, int(max_steps), params_axis, int(filmed),
+                             mesh if count > 1 else None, jax.random.key_impl(key))(
+        np.asarray(jax.random.key_data(key)), agent_state, params, np.asarray(run_ids))
     physics = out.pop("physics", None)  # stays on device: the renderer pulls only what it draws
-    out = jax.device_get(out)
+    out = jax.tree_util.tree_map(lambda x: x[: ids.size], distributed.fetch(out))
     result = EvalResult(arena=arena.build_string or arena.name, agent=agent.name, split=split, episodes=ids,
                         returns=np.asarray(out["returns"]), lengths=np.asarray(out["lengths"]),
                         successes=np.asarray(out["successes"]),
@@ -109,7 +133,8 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
 def evaluate(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_state: PyTree = None,
              params: ArenaParams | None = None, params_axis: int | None = None, split: str = "eval",
              episodes: Any = None, max_steps: int | None = None, videos: int = 0,
-             video_dir: str | Path | None = None, video_options: Any = None) -> EvalResult:
+             video_dir: str | Path | None = None, video_options: Any = None,
+             devices: int | str | None = None) -> EvalResult:
     """Runs ``agent`` on every episode of ``split`` (or the given episode ids), all in parallel.
 
     Each arena runs one episode to its end (terminated or truncated) or ``max_steps`` agent steps; the
@@ -129,6 +154,8 @@ def evaluate(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_
         on the host afterwards. The arena must render (``jarena.render.can_render``).
       video_dir: folder for the videos (required with ``videos``).
       video_options: a :class:`jarena.render.VideoOptions` (frame size, camera, fps, format).
+      devices: split the episodes over this many devices (:func:`jarena.distributed.mesh`: ``"all"``, a
+        count, or ``None``: all devices of a multi-process run, else one); the results are the same.
 
     Returns:
       An :class:`EvalResult` with per-episode returns, lengths, successes and metrics.
@@ -139,7 +166,7 @@ def evaluate(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_
         check_video(arena, video_options, params, params_axis)  # fails before compiling if the arena cannot render
     result, physics = run_episodes(agent, arena, key, agent_state=agent_state, params=params,
                                    params_axis=params_axis, split=split, episodes=episodes, max_steps=max_steps,
-                                   filmed=int(videos))
+                                   filmed=int(videos), devices=devices)
     if videos:
         paths = [Path(video_dir) / f"{split}_episode_{int(i)}" for i in result.episodes[: int(videos)]]
         write_episodes(arena, physics, result.lengths[: int(videos)], paths, video_options, params=params,

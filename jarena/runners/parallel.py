@@ -8,8 +8,9 @@ from typing import Any
 import jax
 import numpy as np
 from flax import struct
-from jax.sharding import Mesh, NamedSharding, PartitionSpec
+from jax.sharding import NamedSharding, PartitionSpec
 
+from jarena import distributed
 from jarena.core.agent import Agent, check_agent_fits
 from jarena.core.arena import Arena
 from jarena.core.batching import batch_reset
@@ -37,14 +38,21 @@ class Rollout:
     actions: PyTree | None
 
 
-def _arena_sharding(num_arenas: int):
-    devices = jax.local_devices()
-    if len(devices) < 2:
+def _mesh(devices: int | str | None):
+    """The devices a rollout spans: as asked, else all devices of a multi-process run, else all local ones."""
+    if devices is None:
+        devices = "all" if jax.process_count() > 1 else len(jax.local_devices())
+    return distributed.mesh(devices)
+
+
+def _arena_sharding(mesh, num_arenas: int):
+    count = mesh.devices.size
+    if count < 2:
         return None
-    if num_arenas % len(devices):
-        raise ValueError(f"perform_parallel shards arenas over {len(devices)} local devices; num_arenas="
-                         f"{num_arenas} must be a multiple of {len(devices)}")
-    return NamedSharding(Mesh(np.asarray(devices), ("arena",)), PartitionSpec("arena"))
+    if num_arenas % count:
+        raise ValueError(f"perform_parallel shards arenas over {count} devices; num_arenas={num_arenas} must be a "
+                         f"multiple of {count}")
+    return NamedSharding(mesh, PartitionSpec(distributed.AXIS))
 
 
 def _constrain(tree, sharding):
@@ -56,10 +64,11 @@ def _constrain(tree, sharding):
 
 @functools.lru_cache(maxsize=64)
 def _compiled(agent: Agent, arena: Arena, num_arenas: int, num_steps: int, params_axis: int | None,
-              record: bool):
-    sharding = _arena_sharding(num_arenas)
+              record: bool, mesh, key_impl):
+    sharding = _arena_sharding(mesh, num_arenas)
 
-    def rollout(key, start, agent_state, params):
+    def rollout(key_data, start, agent_state, params):
+        key = jax.random.wrap_key_data(key_data, impl=key_impl)
         reset_key, act_key = jax.random.split(key)
         if start is None:
             state, info = batch_reset(arena, reset_key, num_arenas, params, params_axis=params_axis)
@@ -85,10 +94,12 @@ def _compiled(agent: Agent, arena: Arena, num_arenas: int, num_steps: int, param
 def perform_parallel(agent: Agent, arena: Arena, key: jax.Array, num_arenas: int, num_steps: int, *,
                      params: ArenaParams | None = None, params_axis: int | None = None,
                      agent_state: PyTree = None, start: tuple[ArenaState, Info] | None = None,
-                     record: bool = True) -> Rollout:
+                     record: bool = True, devices: int | str | None = None) -> Rollout:
     """Steps ``num_arenas`` arenas for ``num_steps`` agent steps with auto-reset, in one compiled call.
 
-    With several local devices the arena batch is sharded over them (``num_arenas`` must divide evenly).
+    The arena batch is sharded over ``devices`` (``num_arenas`` must divide evenly): by default all local
+    devices, or in a multi-process run (:func:`jarena.distributed.initialize`) all devices of all processes,
+    whose results are then global arrays (:func:`jarena.distributed.fetch` gathers them to the host).
 
     Args:
       agent, arena: what to run.
@@ -98,6 +109,7 @@ def perform_parallel(agent: Agent, arena: Arena, key: jax.Array, num_arenas: int
       agent_state: the agent's state for B arenas (default: ``agent.init``).
       start: ``(state, info)`` to continue from (e.g. a previous rollout's), instead of fresh resets.
       record: return per-step infos and actions (T, B, ...); off saves memory for long runs.
+      devices: ``"all"``, a device count, or ``None`` (the default above); see :func:`jarena.distributed.mesh`.
 
     Raises:
       ValueError: ``num_arenas`` or ``num_steps`` < 1.
@@ -111,5 +123,14 @@ def perform_parallel(agent: Agent, arena: Arena, key: jax.Array, num_arenas: int
         agent_state = agent.init(jax.random.fold_in(key, 0x1A1), arena.spec, num_arenas)
     else:
         agent_state = agent.batch_state(agent_state, num_arenas)
-    fn = _compiled(agent, arena, num_arenas, num_steps, params_axis, bool(record))
-    return fn(key, start, agent_state, params)
+    mesh = _mesh(devices)
+    if jax.process_count() > 1:  # process-local values (the same in every process) enter as host values
+        agent_state, params, start = (_host_unless_global(t) for t in (agent_state, params, start))
+    fn = _compiled(agent, arena, num_arenas, num_steps, params_axis, bool(record), mesh, jax.random.key_impl(key))
+    return fn(np.asarray(jax.random.key_data(key)), start, agent_state, params)
+
+
+def _host_unless_global(tree):
+    """Process-local device arrays as host arrays; arrays spanning processes (a previous rollout's) as they are."""
+    return jax.tree_util.tree_map(
+        lambda x: x if not isinstance(x, jax.Array) or not x.is_fully_addressable else distributed.fetch(x), tree)

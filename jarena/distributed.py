@@ -1,0 +1,184 @@
+"""Many devices and many processes: the device mesh training and evaluation run on, through ``jax.sharding``.
+
+jarena spreads work with the engine JAX already has, and nothing home-made: a one-axis :class:`Mesh`
+(``"data"``) over the devices a run uses, the arena batch sharded along it, everything else (parameters,
+optimiser state, counters) replicated, and XLA's SPMD partitioner inserting the collectives (gradient
+all-reduces, the gathers a shuffled minibatch needs). A computation under such a mesh computes the same
+numbers as on one device (up to the order of float reductions), so one code path serves 1 device, all the
+GPUs of a host and, after :func:`initialize`, all devices of all processes of a cluster.
+
+Multi-process runs: call :func:`initialize` (``jax.distributed.initialize``) in every process before any
+other JAX call; each process then runs the same program on its own devices, only the main process
+(:func:`is_main_process`) writes logs, and checkpoints are written collectively by all.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from typing import Any
+
+import jax
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+PyTree = Any
+
+#: The mesh axis the arena batch is sharded along.
+AXIS = "data"
+
+#: Environment variables a launcher sets for :func:`initialize` (jax.distributed also reads SLURM's and others').
+ENVIRONMENT = {"coordinator": "JARENA_COORDINATOR", "num_processes": "JARENA_NUM_PROCESSES",
+               "process_id": "JARENA_PROCESS_ID"}
+
+
+@dataclasses.dataclass(frozen=True)
+class Launch:
+    """Where this process stands in a multi-process run.
+
+    Attributes:
+      coordinator: ``HOST:PORT`` of process 0's coordination service.
+      num_processes: processes in the run.
+      process_id: this process, ``0 .. num_processes - 1``.
+      local_devices: on a CPU-only machine, split the host into this many devices (tests and rehearsals of
+        a cluster launch); ``None`` leaves the devices as JAX finds them.
+    """
+
+    coordinator: str
+    num_processes: int
+    process_id: int
+    local_devices: int | None = None
+
+    def __post_init__(self):
+        host, _, port = self.coordinator.rpartition(":")
+        if not host or not port.isdigit():
+            raise ValueError(f"coordinator must be HOST:PORT (e.g. 10.0.0.1:1234), got {self.coordinator!r}")
+        if not isinstance(self.num_processes, int) or self.num_processes < 1:
+            raise ValueError(f"num_processes must be a positive integer, got {self.num_processes!r}")
+        if not isinstance(self.process_id, int) or not 0 <= self.process_id < self.num_processes:
+            raise ValueError(f"process_id must be in 0 .. {self.num_processes - 1}, got {self.process_id!r}")
+
+
+def launch_from_environment() -> Launch | None:
+    """A :class:`Launch` from ``JARENA_COORDINATOR``, ``JARENA_NUM_PROCESSES`` and ``JARENA_PROCESS_ID``, or
+    ``None`` when none is set (a launcher that sets JAX's own variables, as SLURM's do, needs none of these)."""
+    values = {name: os.environ.get(var) for name, var in ENVIRONMENT.items()}
+    if not any(values.values()):
+        return None
+    missing = [ENVIRONMENT[n] for n, v in values.items() if not v]
+    if missing:
+        raise ValueError(f"a multi-process launch needs all of {', '.join(ENVIRONMENT.values())}; missing "
+                         f"{', '.join(missing)}")
+    try:
+        return Launch(values["coordinator"], int(values["num_processes"]), int(values["process_id"]))
+    except ValueError as e:
+        raise ValueError(f"bad multi-process launch variables {values}: {e}") from None
+
+
+_initialized: Launch | None = None
+
+
+def initialize(launch: Launch | None = None) -> Launch | None:
+    """Joins a multi-process run (``jax.distributed.initialize``); must come before any other JAX call.
+
+    Args:
+      launch: where this process stands; default :func:`launch_from_environment`. ``None`` there too: a
+        single-process run, nothing to do (returns ``None``).
+
+    On CPU devices the processes exchange data through gloo, JAX's CPU collectives. Calling it again with
+    the same launch does nothing; with another one it raises.
+    """
+    global _initialized
+    launch = launch or launch_from_environment()
+    if launch is None or launch == _initialized:
+        return launch
+    if _initialized is not None:
+        raise RuntimeError(f"jax.distributed is already initialised for {_initialized}; cannot join {launch}")
+    if launch.local_devices is not None:
+        _set_cpu_device_count(launch.local_devices)
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    jax.distributed.initialize(coordinator_address=launch.coordinator, num_processes=launch.num_processes,
+                               process_id=launch.process_id)
+    _initialized = launch
+    return launch
+
+
+def _set_cpu_device_count(count: int) -> None:
+    flags = [f for f in os.environ.get("XLA_FLAGS", "").split() if "xla_force_host_platform_device_count" not in f]
+    os.environ["XLA_FLAGS"] = " ".join(flags + [f"--xla_force_host_platform_device_count={int(count)}"])
+
+
+def is_main_process() -> bool:
+    """Whether this is process 0, the one that writes logs, results and videos."""
+    return jax.process_index() == 0
+
+
+def mesh(devices: int | str | None = None) -> Mesh:
+    """A one-axis (``"data"``) mesh over the devices a run uses.
+
+    Args:
+      devices: ``"all"`` (every device of every process), a count ``N`` (the first ``N // P`` local devices
+        of each of the ``P`` processes), or ``None``: all devices in a multi-process run, else one.
+
+    Raises:
+      ValueError: a count that is not a positive multiple of the process count, or more than there are.
+    """
+    available = jax.devices()
+    processes = jax.process_count()
+    if devices is None:
+        devices = "all" if processes > 1 else 1
+    if devices == "all":
+        return Mesh(np.asarray(available), (AXIS,))
+    if isinstance(devices, str):
+        if not devices.isdigit():
+            raise ValueError(f"devices must be 'all' or a positive integer, got {devices!r}")
+        devices = int(devices)
+    if not isinstance(devices, int | np.integer) or devices < 1 or devices > len(available) or devices % processes:
+        raise ValueError(f"devices={devices!r}: choose 'all' or a count from 1 to {len(available)} (the "
+                         f"{jax.default_backend()} devices here) that is a multiple of the {processes} process(es)")
+    per_process = int(devices) // processes
+    chosen = [d for p in range(processes) for d in [d for d in available if d.process_index == p][:per_process]]
+    return Mesh(np.asarray(chosen), (AXIS,))
+
+
+def replicated(mesh: Mesh) -> NamedSharding:
+    """A sharding that keeps a whole copy on every device of ``mesh``."""
+    return NamedSharding(mesh, PartitionSpec())
+
+
+def batch_shardings(tree: PyTree, mesh: Mesh, batch_size: int | None) -> PyTree:
+    """Shardings for ``tree`` (arrays or ``jax.ShapeDtypeStruct``s): leaves whose leading axis is the arena
+    batch (``batch_size``) are split along ``"data"``, all others replicated.
+
+    Which leaves are split changes only speed, never results (the partitioner keeps the program's
+    meaning); this rule splits what grows with the arena count.
+
+    Raises:
+      ValueError: ``batch_size`` not divisible by the mesh's devices.
+    """
+    count = mesh.devices.size
+    if batch_size is not None and batch_size % count:
+        raise ValueError(f"{batch_size} arenas cannot be split evenly over {count} devices; choose num_arenas "
+                         f"divisible by {count} or other devices")
+    split, whole = NamedSharding(mesh, PartitionSpec(AXIS)), replicated(mesh)
+
+    def rule(x):
+        shape = getattr(x, "shape", ())
+        return split if batch_size is not None and count > 1 and len(shape) >= 1 and shape[0] == batch_size else whole
+
+    return jax.tree_util.tree_map(rule, tree)
+
+
+def fetch(tree: PyTree) -> PyTree:
+    """Host (numpy) copies of ``tree``'s arrays (PRNG keys: keys on the default device); a sharded array spanning
+    other processes is gathered first (a collective: every process calls it alike)."""
+    def get(x):
+        if isinstance(x, jax.Array) and jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
+            return jax.random.wrap_key_data(get(jax.random.key_data(x)), impl=jax.random.key_impl(x))
+        if isinstance(x, jax.Array) and not x.is_fully_addressable and not x.is_fully_replicated:
+            from jax.experimental import multihost_utils
+
+            return np.asarray(multihost_utils.process_allgather(x, tiled=True))
+        return jax.device_get(x)
+
+    return jax.tree_util.tree_map(get, tree)

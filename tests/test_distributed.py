@@ -1,0 +1,172 @@
+"""Data-parallel training on a device mesh (jarena.distributed): several CPU devices in one process and several
+processes on localhost (jax.distributed with gloo) compute what one device computes -- training,
+evaluation and perform_parallel -- and a stopped multi-process run resumes from its checkpoints."""
+
+import json
+import os
+import socket
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import jax
+import numpy as np
+import pytest
+
+from jarena import distributed
+
+WORKER = Path(__file__).with_name("distributed_worker.py")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        return s.getsockname()[1]
+
+
+def _launch(out: Path, agent: str, devices: str, *, cpu_devices: int, processes: int = 1,
+            stop_after: int | None = None) -> None:
+    """Runs the worker in ``processes`` processes of ``cpu_devices`` CPU devices each and waits for all."""
+    env = dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={cpu_devices} "
+               "--xla_cpu_multi_thread_eigen=false", JAX_PLATFORMS="cpu")
+    port = _free_port()
+    commands = []
+    for process in range(processes):
+        command = [sys.executable, str(WORKER), str(out), agent, devices]
+        if processes > 1:
+            command += [f"localhost:{port}", str(processes), str(process)]
+        if stop_after is not None:
+            command += ["--stop-after", str(stop_after)]
+        commands.append(command)
+    running = [subprocess.Popen(c, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+               for c in commands]
+    try:
+        outputs = [p.communicate(timeout=600)[0] for p in running]
+    finally:
+        for p in running:
+            p.kill()
+    for p, output in zip(running, outputs, strict=True):
+        assert p.returncode == 0, output[-4000:]
+
+
+def _result(out: Path, process: int = 0) -> dict:
+    with np.load(out / f"result_{process}.npz") as f:
+        data = dict(f)
+    return {"leaves": [data[f"arr_{i}"] for i in range(sum(k.startswith("arr_") for k in data))],
+            "history": json.loads(str(data["history"])), "evaluation": data["evaluation"],
+            "devices": int(data["devices"]), "processes": int(data["processes"]),
+            "batch_shards": int(data["batch_shards"]), "fixed_returns": data["fixed_policy_returns"],
+            "fixed_lengths": data["fixed_policy_lengths"], "rollout_steps": data["rollout_steps"],
+            "rollout_shards": int(data["rollout_shards"])}
+
+
+def _assert_same_run(got: dict, want: dict) -> None:
+    """The same training run: every leaf of the final train state and the losses of every chunk agree to
+    float tolerance (the sharded program sums in another order); the final evaluations agree closely (a
+    policy differing in the 7th digit may act differently late in a chaotic episode). One fixed policy
+    evaluated on the mesh gives what one device gives: the same episode lengths, returns to float
+    tolerance (a smaller batch per device may sum a layer's products in another order). A random agent's
+    perform_parallel rollout over all devices steps as on one device."""
+    assert len(got["leaves"]) == len(want["leaves"])
+    for a, b in zip(got["leaves"], want["leaves"], strict=True):
+        np.testing.assert_allclose(a, b, rtol=2e-4, atol=2e-5)
+    assert len(got["history"]) == len(want["history"])
+    for a, b in zip(got["history"], want["history"], strict=True):
+        assert a.keys() == b.keys()
+        for k in a:
+            if k != "seconds":
+                np.testing.assert_allclose(a[k], b[k], rtol=2e-4, atol=2e-5, err_msg=k)
+    np.testing.assert_allclose(np.mean(got["evaluation"]), np.mean(want["evaluation"]), rtol=0.02)
+    np.testing.assert_array_equal(got["fixed_lengths"], want["fixed_lengths"])
+    assert got["rollout_shards"] == got["devices"]  # perform_parallel spreads its arenas over all devices
+    np.testing.assert_allclose(got["rollout_steps"], want["rollout_steps"], rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(got["fixed_returns"], want["fixed_returns"], rtol=1e-4)
+
+
+@pytest.fixture(scope="module")
+def one_device(tmp_path_factory):
+    """The reference: each agent trained on one device."""
+    runs = {}
+    for agent in ("ppo", "sac"):
+        out = tmp_path_factory.mktemp(f"{agent}_one")
+        _launch(out, agent, "1", cpu_devices=1)
+        runs[agent] = _result(out)
+        assert runs[agent]["devices"] == 1 and runs[agent]["batch_shards"] == 1
+    return runs
+
+
+@pytest.mark.parametrize("agent", ["ppo", "sac"])
+def test_four_devices_in_one_process_train_as_one_device(agent, one_device, tmp_path):
+    _launch(tmp_path, agent, "all", cpu_devices=4)
+    got = _result(tmp_path)
+    assert got["devices"] == 4 and got["batch_shards"] == 4  # the arenas really are split four ways
+    _assert_same_run(got, one_device[agent])
+
+
+def test_two_processes_train_as_one_device_and_a_stopped_run_resumes(one_device, tmp_path):
+    # 2 processes x 2 devices; the first launch stops after one chunk (as a killed job would, after its
+    # checkpoint), the second resumes from the checkpoints all processes wrote
+    _launch(tmp_path, "ppo", "all", cpu_devices=2, processes=2, stop_after=1)
+    assert sorted(os.listdir(tmp_path / "run" / "checkpoints")) == ["1"]
+    assert not (tmp_path / "result_0.npz").exists()
+    _launch(tmp_path, "ppo", "all", cpu_devices=2, processes=2)
+    for process in (0, 1):
+        got = _result(tmp_path, process)
+        assert got["processes"] == 2 and got["devices"] == 4 and got["batch_shards"] == 4  # over both processes
+        _assert_same_run(got, one_device["ppo"])
+    # only process 0 writes the logs: one train.csv, with every chunk of both launches
+    with open(tmp_path / "run" / "train.csv") as f:
+        assert len(f.read().strip().splitlines()) == 1 + len(one_device["ppo"]["history"])
+
+
+def test_four_processes_train_as_one_device(one_device, tmp_path):
+    _launch(tmp_path, "ppo", "all", cpu_devices=1, processes=4)
+    got = _result(tmp_path, 3)
+    assert got["processes"] == 4 and got["devices"] == 4
+    _assert_same_run(got, one_device["ppo"])
+
+
+def test_launch_checks_its_values():
+    with pytest.raises(ValueError, match="HOST:PORT"):
+        distributed.Launch("localhost", 2, 0)
+    with pytest.raises(ValueError, match="process_id must be in 0 .. 1"):
+        distributed.Launch("localhost:1234", 2, 2)
+    with pytest.raises(ValueError, match="num_processes"):
+        distributed.Launch("localhost:1234", 0, 0)
+
+
+def test_launch_from_environment_needs_all_three_variables(monkeypatch):
+    for var in distributed.ENVIRONMENT.values():
+        monkeypatch.delenv(var, raising=False)
+    assert distributed.launch_from_environment() is None
+    monkeypatch.setenv("JARENA_COORDINATOR", "localhost:1234")
+    with pytest.raises(ValueError, match="missing JARENA_NUM_PROCESSES, JARENA_PROCESS_ID"):
+        distributed.launch_from_environment()
+    monkeypatch.setenv("JARENA_NUM_PROCESSES", "2")
+    monkeypatch.setenv("JARENA_PROCESS_ID", "1")
+    assert distributed.launch_from_environment() == distributed.Launch("localhost:1234", 2, 1)
+
+
+def test_mesh_names_the_valid_device_counts():
+    assert distributed.mesh().devices.size == 1  # one process: one device unless asked
+    assert distributed.mesh("all").devices.size == len(jax.devices())
+    with pytest.raises(ValueError, match=f"choose 'all' or a count from 1 to {len(jax.devices())}"):
+        distributed.mesh(len(jax.devices()) + 1)
+    with pytest.raises(ValueError, match="'all' or a positive integer"):
+        distributed.mesh("many")
+
+
+def test_batch_shardings_split_the_arena_axis_and_replicate_the_rest():
+    mesh = distributed.mesh("all")
+    tree = {"params": np.zeros((3, 8)), "arenas": np.zeros((8, 5)), "step": np.zeros(())}
+    shardings = distributed.batch_shardings(tree, mesh, 8)
+    assert shardings["params"].spec == shardings["step"].spec == jax.sharding.PartitionSpec()
+    expected = jax.sharding.PartitionSpec("data") if mesh.devices.size > 1 else jax.sharding.PartitionSpec()
+    assert shardings["arenas"].spec == expected
+
+
+def test_an_arena_count_that_does_not_split_evenly_is_refused():
+    three_devices = SimpleNamespace(devices=SimpleNamespace(size=3))  # the check reads only the device count
+    with pytest.raises(ValueError, match="8 arenas cannot be split evenly over 3 devices"):
+        distributed.batch_shardings({"x": np.zeros(8)}, three_devices, 8)
