@@ -1,0 +1,224 @@
+"""jarena arenas for the Gymnasium ecosystem: one arena as a ``gymnasium.Env``, a batch as a
+``gymnasium.vector.VectorEnv`` stepped in one compiled call.
+
+Observations are the arena's observation dict as a ``spaces.Dict``, or, for an arena with one observation
+key (``classic|domain:cartpole``'s ``state``), that array alone, as Gymnasium's own environments give it
+(``flatten=False`` keeps the dict). Seeds map to jarena's keys: ``reset(seed=s)`` starts from
+``jax.random.key(s)``, later resets draw their keys from the env's ``np_random``, so a seeded env is as
+repeatable as any Gymnasium env; ``reset(options={"episode": i})`` starts jarena's episode ``i`` (the
+fixed validation and evaluation episodes, ``arena.episodes("eval")``). The vector env resets finished
+arenas in the same step (Gymnasium's ``AutoresetMode.SAME_STEP``): the returned observation is the new
+episode's, and ``info["final_obs"]`` and ``info["final_info"]`` hold the finished one's (with
+``info["_final_obs"]`` marking where), as Gymnasium's vector envs do.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import gymnasium
+import jax
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+
+from jarena.core import spec as specs
+from jarena.core.arena import Arena
+from jarena.core.batching import batch_reset, batch_step
+from jarena.core.types import ArenaParams, Info
+from jarena.render.frames import renderer
+from jarena.render.video import control_timestep
+
+_SEED_RANGE = 2**31
+
+
+def _box(spec: specs.Box) -> spaces.Box:
+    return spaces.Box(low=spec.low.astype(spec.dtype), high=spec.high.astype(spec.dtype), shape=spec.shape,
+                      dtype=spec.dtype)
+
+
+def _discrete(spec: specs.Discrete) -> spaces.Discrete:
+    return spaces.Discrete(int(spec.n))
+
+
+def _dict(spec: specs.Dict) -> spaces.Dict:
+    return spaces.Dict({k: space(v) for k, v in spec.spaces.items()})
+
+
+def _tuple(spec: specs.Tuple) -> spaces.Tuple:
+    return spaces.Tuple(tuple(space(v) for v in spec.spaces))
+
+
+#: How each jarena spec type becomes a Gymnasium space.
+SPACES: dict[type, Callable[[Any], spaces.Space]] = {specs.Box: _box, specs.Discrete: _discrete,
+                                                     specs.Dict: _dict, specs.Tuple: _tuple}
+
+
+def space(spec: specs.Spec) -> spaces.Space:
+    """The Gymnasium space of a jarena spec (:data:`SPACES`)."""
+    convert = SPACES.get(type(spec))
+    if convert is None:
+        raise TypeError(f"no Gymnasium space for spec {spec!r}; convertible: {', '.join(t.__name__ for t in SPACES)}")
+    return convert(spec)
+
+
+def _single_key(arena: Arena, flatten: bool) -> str | None:
+    keys = list(arena.observation_spec.spaces)
+    return keys[0] if flatten and len(keys) == 1 else None
+
+
+def _observation_space(arena: Arena, key: str | None) -> spaces.Space:
+    return space(arena.observation_spec.spaces[key] if key is not None else arena.observation_spec)
+
+
+def _observation(observation: dict, key: str | None) -> Any:
+    observation = jax.tree_util.tree_map(np.asarray, observation)
+    return observation[key] if key is not None else observation
+
+
+def _info(info: Info, index: Any = ()) -> dict[str, Any]:
+    """The Gymnasium info of one arena (``index`` into a batch): episode id, step, success, reward terms and
+    metrics, and the fault bitmask (0: none)."""
+    def take(x):
+        return np.asarray(x)[index]
+
+    return {"episode_id": int(take(info.episode)), "step": int(take(info.step)), "success": bool(take(info.success)),
+            "fault": int(take(info.fault)), "reward_terms": {k: float(take(v)) for k, v in info.reward_terms.items()},
+            "metrics": {k: float(take(v)) for k, v in info.metrics.items()}}
+
+
+class ArenaEnv(gymnasium.Env):
+    """One jarena arena as a Gymnasium environment (reset and step are jitted once per env).
+
+    Args:
+      arena: the arena (its time limit truncates episodes).
+      params: arena params (default: ``arena.default_params()``).
+      flatten: give a one-key observation dict as its array (default); ``False`` keeps the ``Dict`` space.
+      render_mode: ``None`` or ``"rgb_array"`` (frames of ``render_size``, for arenas whose dynamics render).
+      render_size: ``(width, height)`` of rendered frames in pixels.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
+
+    def __init__(self, arena: Arena, *, params: ArenaParams | None = None, flatten: bool = True,
+                 render_mode: str | None = None, render_size: tuple[int, int] = (320, 240)):
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        if render_mode is not None:
+            renderer(arena)  # a RenderError naming the arenas that render, now rather than at render()
+        self.arena, self.params = arena, arena.default_params() if params is None else params
+        self.render_mode, self.render_size = render_mode, tuple(render_size)
+        self._key = _single_key(arena, flatten)
+        self.observation_space = _observation_space(arena, self._key)
+        self.action_space = space(arena.action_spec)
+        self._action_dtypes = arena.action_spec.zeros()
+        self._reset = jax.jit(arena.reset)
+        self._step = jax.jit(arena.step)
+        self._state = None
+        self.metadata = dict(self.metadata, render_fps=1.0 / control_timestep(arena))  # real time
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        episode = (options or {}).get("episode")
+        if seed is not None:
+            key = jax.random.key(seed)
+        else:
+            key = jax.random.key(int(self.np_random.integers(_SEED_RANGE)))
+        self._state, info = self._reset(key, self.params, episode)
+        return _observation(info.observation, self._key), _info(info)
+
+    def step(self, action):
+        if self._state is None:
+            raise gymnasium.error.ResetNeeded("call reset() before step()")
+        action = jax.tree_util.tree_map(lambda a, s: np.asarray(a, s.dtype), action, self._action_dtypes)
+        self._state, info = self._step(self._state, action, self.params)
+        return (_observation(info.observation, self._key), float(info.reward), bool(info.terminated),
+                bool(info.truncated), _info(info))
+
+    def render(self):
+        if self.render_mode is None or self._state is None:
+            return None
+        width, height = self.render_size
+        physics = jax.tree_util.tree_map(np.asarray, self._state.physics)
+        return renderer(self.arena)(physics, self.params.dynamics, width=width, height=height, camera=-1)
+
+
+class ArenaVectorEnv(VectorEnv):
+    """``num_envs`` copies of a jarena arena as a Gymnasium vector env, stepped (and auto-reset) in one
+    compiled call; see the module docstring for the autoreset convention.
+
+    Args:
+      arena, params, flatten: as :class:`ArenaEnv`.
+      num_envs: the batch size.
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
+
+    def __init__(self, arena: Arena, num_envs: int, *, params: ArenaParams | None = None, flatten: bool = True):
+        if not isinstance(num_envs, int | np.integer) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        self.arena, self.num_envs = arena, int(num_envs)
+        self.params = arena.default_params() if params is None else params
+        self._key = _single_key(arena, flatten)
+        self.single_observation_space = _observation_space(arena, self._key)
+        self.single_action_space = space(arena.action_spec)
+        self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, self.num_envs)
+        n = self.num_envs
+        self._action_dtypes = arena.action_spec.zeros()
+        self._reset = jax.jit(lambda key, params, episodes: batch_reset(arena, key, n, params, episodes=episodes))
+        self._step = jax.jit(lambda state, action, params: batch_step(arena, state, action, params))
+        self._state = None
+
+    def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
+        """Resets all envs; ``seed`` an int (seeds env ``i`` with ``seed + i``) or one seed per env;
+        ``options={"episode": ids}`` starts jarena episodes ``ids`` (one per env)."""
+        if isinstance(seed, list | tuple):
+            if len(seed) != self.num_envs:
+                raise ValueError(f"reset got {len(seed)} seeds for {self.num_envs} envs")
+            base = seed[0]
+        else:
+            base = seed
+        self._np_random, self._np_random_seed = gymnasium.utils.seeding.np_random(base)
+        episodes = (options or {}).get("episode")
+        if episodes is not None:
+            episodes = np.asarray(episodes, np.int32).reshape(self.num_envs)
+        key = jax.random.key(int(base) if base is not None else int(self._np_random.integers(_SEED_RANGE)))
+        self._state, info = self._reset(key, self.params, episodes)
+        return _observation(info.observation, self._key), self._infos(info, None)
+
+    def step(self, actions):
+        if self._state is None:
+            raise gymnasium.error.ResetNeeded("call reset() before step()")
+        actions = jax.tree_util.tree_map(lambda a, s: np.asarray(a, s.dtype), actions, self._action_dtypes)
+        self._state, info = self._step(self._state, actions, self.params)
+        done = np.asarray(info.done)
+        return (_observation(info.observation, self._key), np.asarray(info.reward, np.float64),
+                np.asarray(info.terminated), np.asarray(info.truncated), self._infos(info, done))
+
+    def _infos(self, info: Info, done: np.ndarray | None) -> dict[str, Any]:
+        """Gymnasium's vector info: arrays over envs, and where an episode ended its final observation
+        (``final_obs``, an object array) and info (``final_info``)."""
+        out = {"episode_id": np.asarray(info.episode), "step": np.asarray(info.step),
+               "success": np.asarray(info.success), "fault": np.asarray(info.fault)}
+        out.update({f"metrics/{k}": np.asarray(v) for k, v in info.metrics.items()})
+        if done is not None and done.any():
+            final = _observation(info.final.observation, self._key)
+            final_obs = np.empty(self.num_envs, dtype=object)
+            final_info = np.empty(self.num_envs, dtype=object)
+            for i in np.flatnonzero(done):
+                final_obs[i] = jax.tree_util.tree_map(lambda x, i=i: x[i], final)
+                final_info[i] = {"episode_id": int(np.asarray(info.final.episode)[i])}
+            out.update(final_obs=final_obs, _final_obs=done.copy(), final_info=final_info, _final_info=done.copy())
+        return out
+
+
+def to_gymnasium(arena: Arena, **options) -> ArenaEnv:
+    """``arena`` as a ``gymnasium.Env`` (options: :class:`ArenaEnv`'s)."""
+    return ArenaEnv(arena, **options)
+
+
+def to_gymnasium_vector(arena: Arena, num_envs: int, **options) -> ArenaVectorEnv:
+    """``num_envs`` arenas as a ``gymnasium.vector.VectorEnv`` stepped in one compiled call."""
+    return ArenaVectorEnv(arena, num_envs, **options)
