@@ -54,6 +54,18 @@ rollout = jarena.perform_parallel(jarena_agents.build_agent("random"), arena, ja
                                   devices=args.devices)
 rollout_steps = distributed.fetch((rollout.infos.reward, rollout.infos.done, rollout.infos.observation))
 rollout_shards = max(len(x.sharding.device_set) for x in jax.tree_util.tree_leaves(rollout.state) if x.ndim)
+# collect: 6 random trajectories from 8 arenas split over the devices; only process 0 opens and writes
+dataset = (jarena.TrajectoryDataset(f"{args.out}/data", "w", **jarena.data.configs_for(arena))
+           if distributed.is_main_process() else None)
+stored = jarena.collect(jarena_agents.build_agent("random"), arena, dataset, 6, key=jax.random.key(4), num_arenas=8,
+                        chunk_steps=50, progress=False, devices=args.devices)
+collected = np.zeros((0, 2))
+if dataset is not None:
+    collected = np.asarray([[t["episode"], np.sum(t["reward"])] for t in dataset], np.float64)
+    assert stored == list(range(6)), stored
+    dataset.close()
+else:
+    assert stored == [], stored
 # one fixed (untrained, sampling) policy evaluated on the run's devices: evaluation alone must be exact
 untrained = jax.device_get(agent.policy(jax.jit(agent.init_training, static_argnums=1)(jax.random.key(1), arena),
                                         arena.spec, False))
@@ -69,6 +81,7 @@ np.savez(f"{args.out}/result_{jax.process_index()}.npz",
          history=json.dumps(result.history), evaluation=np.asarray(result.evaluation.returns),
          rollout_steps=np.concatenate([np.asarray(x, np.float32).reshape(40, 8, -1)
                                        for x in jax.tree_util.tree_leaves(rollout_steps)], axis=-1),
-         rollout_shards=rollout_shards, fixed_policy_returns=fixed.returns, fixed_policy_lengths=fixed.lengths,
+         rollout_shards=rollout_shards, collected=collected, fixed_policy_returns=fixed.returns,
+         fixed_policy_lengths=fixed.lengths,
          devices=len(jax.devices()), processes=jax.process_count(),
          batch_shards=min(len(x.sharding.device_set) for x in batch))

@@ -1,6 +1,6 @@
 """Data-parallel training on a device mesh (jarena.distributed): several CPU devices in one process and several
 processes on localhost (jax.distributed with gloo) compute what one device computes -- training,
-evaluation and perform_parallel -- and a stopped multi-process run resumes from its checkpoints."""
+evaluation, perform_parallel and collect -- and a stopped multi-process run resumes from its checkpoints."""
 
 import json
 import os
@@ -58,7 +58,7 @@ def _result(out: Path, process: int = 0) -> dict:
             "devices": int(data["devices"]), "processes": int(data["processes"]),
             "batch_shards": int(data["batch_shards"]), "fixed_returns": data["fixed_policy_returns"],
             "fixed_lengths": data["fixed_policy_lengths"], "rollout_steps": data["rollout_steps"],
-            "rollout_shards": int(data["rollout_shards"])}
+            "rollout_shards": int(data["rollout_shards"]), "collected": data["collected"]}
 
 
 def _assert_same_run(got: dict, want: dict) -> None:
@@ -67,7 +67,8 @@ def _assert_same_run(got: dict, want: dict) -> None:
     policy differing in the 7th digit may act differently late in a chaotic episode). One fixed policy
     evaluated on the mesh gives what one device gives: the same episode lengths, returns to float
     tolerance (a smaller batch per device may sum a layer's products in another order). A random agent's
-    perform_parallel rollout over all devices steps as on one device."""
+    perform_parallel rollout over all devices steps as on one device, and collect stores the same
+    trajectories."""
     assert len(got["leaves"]) == len(want["leaves"])
     for a, b in zip(got["leaves"], want["leaves"], strict=True):
         np.testing.assert_allclose(a, b, rtol=2e-4, atol=2e-5)
@@ -81,6 +82,9 @@ def _assert_same_run(got: dict, want: dict) -> None:
     np.testing.assert_array_equal(got["fixed_lengths"], want["fixed_lengths"])
     assert got["rollout_shards"] == got["devices"]  # perform_parallel spreads its arenas over all devices
     np.testing.assert_allclose(got["rollout_steps"], want["rollout_steps"], rtol=1e-6, atol=1e-6)
+    if len(got["collected"]):  # the writing process: the same trajectories (episode ids and returns) stored
+        assert got["collected"].shape == (6, 2)
+        np.testing.assert_allclose(got["collected"], want["collected"], rtol=1e-5)
     np.testing.assert_allclose(got["fixed_returns"], want["fixed_returns"], rtol=1e-4)
 
 
@@ -111,6 +115,7 @@ def test_two_processes_train_as_one_device_and_a_stopped_run_resumes(one_device,
     assert sorted(os.listdir(tmp_path / "run" / "checkpoints")) == ["1"]
     assert not (tmp_path / "result_0.npz").exists()
     _launch(tmp_path, "ppo", "all", cpu_devices=2, processes=2)
+    assert len(_result(tmp_path, 0)["collected"]) == 6 and len(_result(tmp_path, 1)["collected"]) == 0
     for process in (0, 1):
         got = _result(tmp_path, process)
         assert got["processes"] == 2 and got["devices"] == 4 and got["batch_shards"] == 4  # over both processes

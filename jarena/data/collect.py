@@ -22,6 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
+from jarena import distributed
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena
 from jarena.core.batching import batch_reset
@@ -81,10 +82,10 @@ def _chunk_to_host(start_info, rollout, observe: Observe | None) -> dict[str, An
     if observe is not None:
         observe_all = jax.vmap(jax.vmap(observe))
         observation, following = observe_all(observation), observe_all(following)
-    return jax.device_get(dict(observation=observation, next_observation=following, action=rollout.actions,
-                               reward=infos.reward, terminated=infos.terminated, truncated=infos.truncated,
-                               goal=before(start_info.goal, infos.goal),
-                               episode=before(start_info.episode, infos.episode)))
+    return distributed.fetch(dict(observation=observation, next_observation=following, action=rollout.actions,
+                                  reward=infos.reward, terminated=infos.terminated, truncated=infos.truncated,
+                                  goal=before(start_info.goal, infos.goal),
+                                  episode=before(start_info.episode, infos.episode)))
 
 
 def _take(tree, index):
@@ -125,14 +126,16 @@ class _Episodes:
                     terminated=steps["terminated"], truncated=steps["truncated"], episode=int(steps["episode"][0]))
 
 
-def collect(agent: Agent, arena: Arena, dataset: TrajectoryDataset, n_trajectories: int, *, key: jax.Array,
+def collect(agent: Agent, arena: Arena, dataset: TrajectoryDataset | None, n_trajectories: int, *, key: jax.Array,
             num_arenas: int | None = None, params: ArenaParams | None = None, chunk_steps: int = 100,
-            observe: Observe | None = None, progress: bool = True) -> list[int]:
+            observe: Observe | None = None, progress: bool = True, devices: int | str | None = None) -> list[int]:
     """Runs ``agent`` on a batch of ``arena`` and appends ``n_trajectories`` finished episodes to ``dataset``.
 
     Args:
       agent, arena: what to run (training episodes drawn from ``key``, auto-reset as they end).
-      dataset: an open, writable :class:`TrajectoryDataset` whose configs fit (see :func:`configs_for`).
+      dataset: an open, writable :class:`TrajectoryDataset` whose configs fit (see :func:`configs_for`). In a
+        multi-process run (:func:`jarena.distributed.initialize`) every process calls ``collect`` alike and
+        only process 0 opens the dataset and writes to it; the others pass ``None``.
       n_trajectories: episodes to store (the first to finish; unfinished ones at the end are dropped).
       key: PRNG key; the stored trajectories are a pure function of it (and the arguments).
       num_arenas: arenas run in parallel (default ``min(n_trajectories, 64)``).
@@ -140,30 +143,40 @@ def collect(agent: Agent, arena: Arena, dataset: TrajectoryDataset, n_trajectori
       chunk_steps: agent steps per compiled chunk; host work happens between chunks.
       observe: a traceable transform of each observation dict before storing (e.g. :func:`resize_images`).
       progress: show a progress bar.
+      devices: the arenas are split over these devices (:func:`jarena.perform_parallel`'s ``devices``; by
+        default all local ones, or all of a multi-process run); ``num_arenas`` must divide evenly.
 
     Returns:
-      The indices of the stored trajectories in ``dataset``.
+      The indices of the stored trajectories in ``dataset`` (``[]`` in processes that do not write).
     """
     if arena.max_episode_steps is None:
         raise ValueError(f"arena {arena.name!r} has no time limit, so its episodes may never end; "
                          f"add one with jarena.tasks.time_limit before collecting")
     if n_trajectories < 1 or chunk_steps < 1:
         raise ValueError(f"n_trajectories and chunk_steps must be positive, got {n_trajectories}, {chunk_steps}")
+    main = distributed.is_main_process()
+    if (dataset is None) == main:
+        raise ValueError("collect: pass the dataset in process 0 (the process that writes) and None in the others, "
+                         f"got {'None' if dataset is None else 'a dataset'} in process {jax.process_index()}")
     num_arenas = int(num_arenas or min(n_trajectories, 64))
     params = arena.default_params() if params is None else params
     key_reset, key_agent, key_run = jax.random.split(key, 3)
     state, info = jax.jit(lambda k, p: batch_reset(arena, k, num_arenas, p))(key_reset, params)
     agent_state = agent.init(key_agent, arena.spec, num_arenas)
-    episodes = _Episodes(num_arenas, has_goal=bool(dataset.schema.goal))
+    episodes = _Episodes(num_arenas, has_goal=bool(dataset.schema.goal) if main else False)
     stored: list[int] = []
-    with tqdm(total=n_trajectories, desc=f"collect {arena.name}", unit="traj", disable=not progress) as bar:
+    done = 0
+    with tqdm(total=n_trajectories, desc=f"collect {arena.name}", unit="traj", disable=not (progress and main)) as bar:
         chunk = 0
-        while len(stored) < n_trajectories:
+        while done < n_trajectories:
             rollout = perform_parallel(agent, arena, jax.random.fold_in(key_run, chunk), num_arenas, chunk_steps,
-                                       params=params, agent_state=agent_state, start=(state, info))
+                                       params=params, agent_state=agent_state, start=(state, info),
+                                       devices=devices)
             finished = episodes.finished(_chunk_to_host(info, rollout, observe))
-            finished = finished[:n_trajectories - len(stored)]
-            stored += dataset.add_trajectories(finished)
+            finished = finished[:n_trajectories - done]
+            if main:
+                stored += dataset.add_trajectories(finished)
+            done += len(finished)
             bar.update(len(finished))
             state, info, agent_state, chunk = rollout.state, rollout.info, rollout.agent_state, chunk + 1
     return stored
