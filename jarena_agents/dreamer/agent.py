@@ -256,7 +256,7 @@ def make_dreamer(config=None) -> TrainableAgent:
             return learner, {**model_metrics, **behaviour_metrics}
 
         ready = (env_steps >= cfg.learning_starts) & buffer.can_sample(running.buffer)
-        learner, metrics = online.learn_when_ready(ready, gradient_step, ts.learner, learn_key, cfg.train_steps,
+        learner, metrics = online.learn_when_ready(ready, gradient_step, ts.learner, learn_key, cfg.gradient_steps,
                                                    online.MODEL_METRICS + BEHAVIOUR_METRICS)
         ts = DreamerTrainState(learner=learner, buffer=running.buffer, memory=running.memory,
                                arena_state=running.arena_state, info=running.info,

@@ -1,8 +1,9 @@
 """``planet``: a world model learned online, and CEM planning in its latent space (Hafner et al. 2019, PlaNet).
 
 Each update collects ``rollout_length`` steps of the B arenas into a window buffer
-(:mod:`jarena_agents.world_model.online`), then takes ``train_steps`` world-model gradient steps
-(:mod:`jarena_agents.world_model`) on sequences of ``sequence_length`` transitions. Until ``learning_starts``
+(:mod:`jarena_agents.world_model.online`), then takes ``gradient_steps`` world-model gradient steps
+(``train_steps``, or as many as ``replay_ratio`` asks; :mod:`jarena_agents.world_model`) on sequences of
+``sequence_length`` transitions. Until ``learning_starts``
 environment steps, actions are uniform (the seed episodes); afterwards the agent acts as below, with Gaussian
 exploration noise.
 
@@ -171,7 +172,7 @@ def make_planet(config=None) -> TrainableAgent:
 
         ready = (env_steps >= cfg.learning_starts) & buffer.can_sample(running.buffer)
         (params, opt_state), metrics = online.learn_when_ready(ready, gradient_step, (ts.params, ts.opt_state),
-                                                               learn_key, cfg.train_steps, online.MODEL_METRICS)
+                                                               learn_key, cfg.gradient_steps, online.MODEL_METRICS)
         ts = PlaNetTrainState(params=params, opt_state=opt_state, buffer=running.buffer, memory=running.memory,
                               arena_state=running.arena_state, info=running.info,
                               episode_return=running.episode_return, key=key, update=ts.update + 1,

@@ -22,7 +22,7 @@ from jarena.core.batching import batch_step
 from jarena.core.types import Info
 from jarena.data.experience import transition_from
 from jarena_agents import networks
-from jarena_agents.config import at_least, non_negative
+from jarena_agents.config import at_least, non_negative, positive
 from jarena_agents.world_model import model as wm
 from jarena_agents.world_model.model import WorldModelConfig
 from jarena_agents.world_model.networks import Latent, RSSMCell
@@ -37,7 +37,10 @@ class OnlineConfig(WorldModelConfig):
 
     num_arenas: int = at_least(1, default=8)
     rollout_length: int = at_least(1, default=100)  # environment steps per arena per update
-    train_steps: int = at_least(1, default=100)  # gradient steps per update
+    train_steps: int = at_least(1, default=100)  # gradient steps per update (unless replay_ratio is set)
+    # DreamerV3's train ratio: replayed steps (batch_size x sequence_length per gradient step) per agent step
+    # collected; when set it fixes the gradient steps per update (see ``gradient_steps``), else train_steps does
+    replay_ratio: float | None = positive(None)
     batch_size: int = at_least(1, default=16)
     sequence_length: int = at_least(2, default=50)
     buffer_size: int = at_least(1, default=1_000_000)
@@ -53,11 +56,24 @@ class OnlineConfig(WorldModelConfig):
     def num_updates(self) -> int:
         return max(1, self.total_steps // self.steps_per_update)
 
+    @property
+    def gradient_steps(self) -> int:
+        """Gradient steps per update: ``train_steps``, or with ``replay_ratio`` set,
+        ``round(replay_ratio * steps_per_update / (batch_size * sequence_length))``."""
+        if self.replay_ratio is None:
+            return self.train_steps
+        return round(self.replay_ratio * self.steps_per_update / (self.batch_size * self.sequence_length))
+
     def model_config(self) -> WorldModelConfig:
         return WorldModelConfig(**{f.name: getattr(self, f.name) for f in dataclasses.fields(WorldModelConfig)})
 
 
 def check_online_config(cfg: OnlineConfig, agent: str) -> None:
+    if cfg.replay_ratio is not None and cfg.gradient_steps < 1:
+        low = cfg.batch_size * cfg.sequence_length / (2 * cfg.steps_per_update)
+        raise ValueError(f"{agent}: replay_ratio={cfg.replay_ratio} gives less than one gradient step per update "
+                         f"({cfg.steps_per_update} agent steps, batches of {cfg.batch_size} x {cfg.sequence_length} "
+                         f"steps); use replay_ratio >= {low:g}, or more arenas or a longer rollout_length per update")
     if cfg.buffer_size % cfg.num_arenas:
         raise ValueError(f"{agent}: buffer_size={cfg.buffer_size} must be a multiple of num_arenas={cfg.num_arenas}")
     if cfg.buffer_size // cfg.num_arenas < cfg.sequence_length:

@@ -32,6 +32,24 @@ def test_config_errors_name_the_problem():
         jarena_agents.build_agent("planet", {**TINY, "sequence_length": 50})
 
 
+def test_replay_ratio_sets_the_gradient_steps(pendulum):
+    # DreamerV3's train ratio: 2.4 replayed steps per agent step = 2.4 * (2 x 5) / (2 x 4) = 3 gradient steps
+    by_ratio = jarena_agents.build_agent("planet", {**TINY, "replay_ratio": 2.4})
+    assert by_ratio.settings.gradient_steps == 3
+    assert jarena_agents.build_agent("planet", TINY).settings.gradient_steps == 2  # train_steps without a ratio
+
+    def trained(agent):
+        ts = jax.jit(agent.init_training, static_argnums=1)(jax.random.key(0), pendulum)
+        return jax.jit(agent.train, static_argnums=(1, 2))(ts, pendulum, 4)[0].params
+
+    same = jax.tree_util.tree_map(np.array_equal, trained(by_ratio),
+                                  trained(jarena_agents.build_agent("planet", {**TINY, "train_steps": 3})))
+    assert all(jax.tree_util.tree_leaves(same))  # exactly as three gradient steps per update
+    with pytest.raises(ValueError, match=r"replay_ratio=0.1 gives less than one gradient step per update .* "
+                                         r"use replay_ratio >= 0.4"):
+        jarena_agents.build_agent("planet", {**TINY, "replay_ratio": 0.1})
+
+
 def test_acting_filters_the_belief_and_restarts_it_with_each_episode(agent, pendulum):
     state = agent.init(jax.random.key(0), pendulum.spec, 3)
     arena_state, info = jarena.batch_reset(pendulum, jax.random.key(1), 3)
