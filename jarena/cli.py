@@ -102,11 +102,14 @@ def _cmd_evaluate(args) -> int:
         except RenderError as e:
             print(f"warning: no videos: {e}", file=sys.stderr)
             videos = 0
+    from jarena import distributed
+
+    devices = distributed.mesh(args.devices).devices.size
     print(f"evaluating {agent.name!r} on {args.arena!r}: {n} {args.split} episodes in parallel "
-          f"on {jax.devices()[0].platform} ...", flush=True)
+          f"on {devices} {jax.default_backend()} device(s) ...", flush=True)
     start = time.perf_counter()
     result, physics = run_episodes(agent, arena, jax.random.key(args.seed), split=args.split, episodes=episodes,
-                                   agent_state=agent_state, filmed=videos)
+                                   agent_state=agent_state, filmed=videos, devices=args.devices)
     seconds = time.perf_counter() - start
     steps = int(result.lengths.sum())
     print(f"done in {seconds:.1f} s (compile included), {steps} agent steps")
@@ -382,6 +385,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", default=None, help="also write the summary and per-episode results to this file")
     p.add_argument("--videos", type=int, default=0, metavar="N", help="film the first N episodes (0: none)")
     p.add_argument("--video-dir", default="videos", help="folder for --videos")
+    p.add_argument("--devices", default=None, metavar="N|all",
+                   help="split the episodes over this many devices, or 'all' (default: 1); the results are the same")
     p.set_defaults(fn=_cmd_evaluate)
 
     p = sub.add_parser(

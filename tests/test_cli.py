@@ -55,6 +55,10 @@ def test_train_names_bad_device_and_launch_flags(capsys, monkeypatch):
     assert "HOST:PORT" in capsys.readouterr().err
     assert main(["train", "ppo", "classic|domain:cartpole", "--steps", "64", "--devices", "many"]) == 2
     assert "'all' or a positive integer" in capsys.readouterr().err
+    assert main(["evaluate", "random", "classic|domain:cartpole", "--episodes", "2", "--devices", "all"]) == 0
+    assert "on 1 cpu device(s)" in capsys.readouterr().out
+    assert main(["evaluate", "random", "classic|domain:cartpole", "--devices", "3"]) == 2
+    assert "choose 'all' or a count from 1 to 1" in capsys.readouterr().err
 
 
 def test_train_help_explains_devices_and_processes(capsys):
