@@ -25,6 +25,21 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+def _run_all(commands: list[list[str]], env: dict) -> list[str]:
+    """Starts every command at once (the processes of one run), waits for all, and returns their outputs;
+    each must succeed."""
+    running = [subprocess.Popen(c, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+               for c in commands]
+    try:
+        outputs = [p.communicate(timeout=600)[0] for p in running]
+    finally:
+        for p in running:
+            p.kill()
+    for p, output in zip(running, outputs, strict=True):
+        assert p.returncode == 0, output[-4000:]
+    return outputs
+
+
 def _launch(out: Path, agent: str, devices: str, *, cpu_devices: int, processes: int = 1,
             stop_after: int | None = None) -> None:
     """Runs the worker in ``processes`` processes of ``cpu_devices`` CPU devices each and waits for all."""
@@ -39,15 +54,7 @@ def _launch(out: Path, agent: str, devices: str, *, cpu_devices: int, processes:
         if stop_after is not None:
             command += ["--stop-after", str(stop_after)]
         commands.append(command)
-    running = [subprocess.Popen(c, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-               for c in commands]
-    try:
-        outputs = [p.communicate(timeout=600)[0] for p in running]
-    finally:
-        for p in running:
-            p.kill()
-    for p, output in zip(running, outputs, strict=True):
-        assert p.returncode == 0, output[-4000:]
+    _run_all(commands, env)
 
 
 def _result(out: Path, process: int = 0) -> dict:
@@ -130,6 +137,22 @@ def test_four_processes_train_as_one_device(one_device, tmp_path):
     got = _result(tmp_path, 3)
     assert got["processes"] == 4 and got["devices"] == 4
     _assert_same_run(got, one_device["ppo"])
+
+
+def test_the_command_line_launches_two_processes(tmp_path):
+    """``jarena train`` with --coordinator/--num-processes/--process-id, as a cluster launcher would start it:
+    both processes train on the 2-device mesh, and only process 0 prints the results and writes the run."""
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=1 --xla_cpu_multi_thread_eigen=false",
+               JAX_PLATFORMS="cpu")
+    port, run = _free_port(), tmp_path / "run"
+    commands = [[sys.executable, "-m", "jarena.cli", "train", "ppo", "classic|domain:cartpole", "--steps", "512",
+                 "--set", "num_arenas=8", "--set", "rollout_length=32", "--no-progress", "--videos", "0",
+                 "--run-dir", str(run), "--coordinator", f"localhost:{port}", "--num-processes", "2",
+                 "--process-id", str(i)] for i in range(2)]
+    outputs = _run_all(commands, env)
+    assert "on 2 cpu devices of 2 processes" in outputs[0] and "| return" in outputs[0]
+    assert "| return" not in outputs[1] and "training 'ppo'" not in outputs[1]
+    assert (run / "evaluation.json").is_file() and (run / "checkpoints").is_dir()
 
 
 def test_launch_checks_its_values():
