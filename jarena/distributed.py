@@ -14,6 +14,7 @@ other JAX call; each process then runs the same program on its own devices, only
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 from typing import Any
@@ -139,6 +140,13 @@ def mesh(devices: int | str | None = None) -> Mesh:
     per_process = int(devices) // processes
     chosen = [d for p in range(processes) for d in [d for d in available if d.process_index == p][:per_process]]
     return Mesh(np.asarray(chosen), (AXIS,))
+
+
+def tracing_on(mesh: Mesh):
+    """A context in which programs are traced with ``mesh`` as JAX's current mesh (``jax.set_mesh``), so that
+    batched arena code can keep per-arena decisions on each device (see ``jarena.core.batching``); a no-op for
+    a mesh of one device."""
+    return jax.set_mesh(mesh) if mesh.devices.size > 1 else contextlib.nullcontext()
 
 
 def replicated(mesh: Mesh) -> NamedSharding:

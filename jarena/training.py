@@ -205,7 +205,8 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
             return TrainResult(train_state=train_state, history=history, validations=validations_done,
                                evaluation=None)
         n = min(chunk_updates, num_updates - done_updates)
-        train_state, metrics = chunk(train_state, arena, n)
+        with distributed.tracing_on(mesh):
+            train_state, metrics = chunk(train_state, arena, n)
         metrics = jax.device_get(metrics)
         done_updates += n
         row = _history_row(metrics, done_updates, steps_per_update, time.perf_counter() - start)

@@ -37,7 +37,7 @@ from jarena.training import train_and_evaluate  # noqa: E402
 
 enable_compilation_cache(min_compile_secs=0.2)
 CONFIGS = {
-    "ppo": ("classic|domain:cartpole",
+    "ppo": ("classic|domain:cartpole,auto_reset:lazy",  # lazy: a cond per step, kept on each device
             {"num_arenas": 8, "rollout_length": 16, "total_steps": 8 * 16 * 4, "minibatches": 2, "epochs": 2}),
     "sac": ("classic|domain:pendulum",
             {"num_arenas": 4, "rollout_length": 4, "total_steps": 4 * 4 * 4, "batch_size": 32, "buffer_size": 256,

@@ -6,11 +6,13 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+from jax.sharding import PartitionSpec
 
 from jarena.core.arena import Arena
 from jarena.core.resets import reset_strategy
 from jarena.core.tree import tree_where
 from jarena.core.types import ArenaParams, ArenaState, Info
+from jarena.distributed import AXIS
 
 PyTree = Any
 
@@ -70,8 +72,27 @@ def batch_step(arena: Arena, states: ArenaState, actions: PyTree, params: ArenaP
                params_axis: int | None = None, reset_done: bool = True) -> tuple[ArenaState, Info]:
     """Steps a batch of arenas (leading axis B), auto-resetting finished episodes when ``reset_done``
     (as ``arena.auto_reset`` says; a ``lazy`` arena computes resets only in steps where some arena
-    finished, with the same result as ``select``)."""
+    finished, with the same result as ``select``).
+
+    Traced under a mesh whose ``"data"`` axis splits the batch over several devices (``jax.set_mesh``, as
+    :func:`jarena.perform_parallel` and sharded training do), each device steps its own arenas: batched
+    loops (a physics solver's iterations, a lazy reset's "did any finish") then stop on each device's own
+    arenas, with no all-reduce and no wait for the slowest device in every iteration. Each arena's step
+    depends on its own state only, so the result is the same up to float rounding (a device's smaller batch
+    may round differently: walker observations agreed to 1e-4 after 25 steps on 4 CPU devices).
+    """
     params = arena.default_params() if params is None else params
+    mesh = _arena_mesh()
+    if mesh is None or params_axis not in (None, 0):
+        return _batch_step(arena, states, actions, params, params_axis, reset_done)
+    split = PartitionSpec(AXIS)
+    return jax.shard_map(lambda s, a, p: _batch_step(arena, s, a, p, params_axis, reset_done), mesh=mesh,
+                         in_specs=(split, split, split if params_axis == 0 else PartitionSpec()), out_specs=split,
+                         check_vma=False)(states, actions, params)
+
+
+def _batch_step(arena: Arena, states: ArenaState, actions: PyTree, params: ArenaParams, params_axis: int | None,
+                reset_done: bool) -> tuple[ArenaState, Info]:
     if not reset_done:
         return jax.vmap(arena.step, in_axes=(0, 0, params_axis))(states, actions, params)
     if not reset_strategy(arena.auto_reset).only_when_done:
@@ -80,3 +101,12 @@ def batch_step(arena: Arena, states: ArenaState, actions: PyTree, params: ArenaP
     stepped = jax.vmap(arena.step, in_axes=(0, 0, params_axis))(states, actions, params)
     restart = jax.vmap(lambda s, i, p: _start_new_episodes(arena, s, i, p), in_axes=(0, 0, params_axis))
     return jax.lax.cond(jnp.any(stepped[1].done), lambda x: restart(*x, params), lambda x: x, stepped)
+
+
+def _arena_mesh():
+    """The mesh (traced under ``jax.set_mesh``) whose ``"data"`` axis splits the arena batch over several
+    devices, or ``None``."""
+    mesh = jax.sharding.get_abstract_mesh()
+    if mesh.empty or AXIS not in mesh.axis_names or mesh.shape[AXIS] < 2:
+        return None
+    return mesh

@@ -127,7 +127,8 @@ def perform_parallel(agent: Agent, arena: Arena, key: jax.Array, num_arenas: int
     if jax.process_count() > 1:  # process-local values (the same in every process) enter as host values
         agent_state, params, start = (_host_unless_global(t) for t in (agent_state, params, start))
     fn = _compiled(agent, arena, num_arenas, num_steps, params_axis, bool(record), mesh, jax.random.key_impl(key))
-    return fn(np.asarray(jax.random.key_data(key)), start, agent_state, params)
+    with distributed.tracing_on(mesh):  # lazy auto-resets decide per device (jarena.core.batching)
+        return fn(np.asarray(jax.random.key_data(key)), start, agent_state, params)
 
 
 def _host_unless_global(tree):
