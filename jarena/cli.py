@@ -356,9 +356,9 @@ def build_parser() -> argparse.ArgumentParser:
         "devices and processes",
         "Data-parallel training: the arenas are split over the devices, the networks replicated, and the run "
         "computes what it computes on one device. For several processes (hosts), start the same command in "
-        "each with its --process-id (or set JARENA_COORDINATOR, JARENA_NUM_PROCESSES, JARENA_PROCESS_ID; JAX "
-        "also reads SLURM's variables); process 0 writes the run directory, all write checkpoints, so it must "
-        "be on a filesystem all processes share.")
+        "each with its --process-id (or set JARENA_COORDINATOR, JARENA_NUM_PROCESSES, JARENA_PROCESS_ID, e.g. "
+        "from SLURM's $SLURM_NTASKS and $SLURM_PROCID); process 0 writes the run directory, all write "
+        "checkpoints, so it must be on a filesystem all processes share.")
     group.add_argument("--devices", default=None, metavar="N|all",
                        help="devices to train on: 'all', or a count (default: all in a multi-process run, else 1)")
     group.add_argument("--coordinator", default=None, metavar="HOST:PORT",

@@ -28,7 +28,7 @@ PyTree = Any
 #: The mesh axis the arena batch is sharded along.
 AXIS = "data"
 
-#: Environment variables a launcher sets for :func:`initialize` (jax.distributed also reads SLURM's and others').
+#: Environment variables a launcher sets for :func:`initialize` (on SLURM: from $SLURM_NTASKS and $SLURM_PROCID).
 ENVIRONMENT = {"coordinator": "JARENA_COORDINATOR", "num_processes": "JARENA_NUM_PROCESSES",
                "process_id": "JARENA_PROCESS_ID"}
 
@@ -62,7 +62,7 @@ class Launch:
 
 def launch_from_environment() -> Launch | None:
     """A :class:`Launch` from ``JARENA_COORDINATOR``, ``JARENA_NUM_PROCESSES`` and ``JARENA_PROCESS_ID``, or
-    ``None`` when none is set (a launcher that sets JAX's own variables, as SLURM's do, needs none of these)."""
+    ``None`` when none is set (a single-process run)."""
     values = {name: os.environ.get(var) for name, var in ENVIRONMENT.items()}
     if not any(values.values()):
         return None
