@@ -1,0 +1,91 @@
+"""Scaling over devices: perform_parallel rollouts and PPO training on 1 device against all local devices.
+
+Weak scaling keeps the arenas per device fixed (the batch grows with the devices); strong scaling keeps the
+global batch fixed. For each device count it reports rollout steps/s (a random agent, ``perform_parallel``,
+``record=False``, the compiled call timed after a warm-up) and PPO training steps/s (``train_and_evaluate``
+on the mesh, from the chunks after the first, so compilation is excluded), and the ratio to one device.
+
+    python benchmarks/multi_device_scaling.py --arena "dmc|domain:walker,task:walk" --arenas 2048 \
+        --rollout-steps 100 --ppo-steps 2000000
+    # on a CPU, rehearse with split devices:
+    XLA_FLAGS=--xla_force_host_platform_device_count=4 python benchmarks/multi_device_scaling.py --ppo-steps 0
+
+Prints one line per measurement and a JSON summary (with the machine) at the end.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import jax
+from timing import environment
+
+import jarena
+import jarena_agents
+from jarena.training import train_and_evaluate
+
+
+def rollout_rate(arena, num_arenas: int, steps: int, devices: int, repeats: int) -> float:
+    """Agent steps per second of a random agent's rollout over ``devices`` devices (best of ``repeats``)."""
+    agent = jarena_agents.build_agent("random")
+    key = jax.random.key(0)
+    jax.block_until_ready(jarena.perform_parallel(agent, arena, key, num_arenas, steps, record=False,
+                                                  devices=devices).info.reward)  # compile and warm up
+    best = float("inf")
+    for i in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(jarena.perform_parallel(agent, arena, jax.random.key(i + 1), num_arenas, steps,
+                                                      record=False, devices=devices).info.reward)
+        best = min(best, time.perf_counter() - t0)
+    return num_arenas * steps / best
+
+
+def ppo_rate(arena, config: dict, num_arenas: int, total_steps: int, devices: int) -> tuple[float, float]:
+    """``(environment steps/s after the first chunk, final eval return)`` of PPO on ``devices`` devices."""
+    agent = jarena_agents.build_agent("ppo", dict(config, num_arenas=num_arenas, total_steps=total_steps))
+    updates = agent.settings.num_updates
+    if updates < 2:
+        raise SystemExit(f"--ppo-steps {total_steps} is {updates} PPO update of {agent.settings.steps_per_update} "
+                         "steps; the rate is measured after the first chunk: give at least 2 updates' worth")
+    result = train_and_evaluate(agent, arena, jax.random.key(0), validate_every=0, progress=False, eval_videos=0,
+                                devices=devices, chunk_updates=max(1, updates // 10))
+    first, last = result.history[0], result.history[-1]
+    rate = (last["env_steps"] - first["env_steps"]) / max(last["seconds"] - first["seconds"], 1e-9)
+    return rate, result.evaluation.summary()["return_mean"]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--arena", default="classic|domain:cartpole")
+    parser.add_argument("--arenas", type=int, default=4096, help="arenas per device (weak) and in all (strong)")
+    parser.add_argument("--rollout-steps", type=int, default=200)
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--ppo-steps", type=int, default=0, help="PPO environment steps per run (0: no PPO)")
+    parser.add_argument("--ppo-config", default="default", help="config name under configs/ppo/<arena>/")
+    args = parser.parse_args()
+    arena = jarena.build_arena(args.arena)
+    counts = sorted({1, len(jax.local_devices())})
+    config = jarena.retrieve_config("ppo", arena, args.ppo_config) if args.ppo_steps else None
+    results = {}
+    for scaling in ("weak", "strong"):
+        for d in counts:
+            n = args.arenas * d if scaling == "weak" else args.arenas
+            row = {"devices": d, "arenas": n,
+                   "rollout_steps_per_s": rollout_rate(arena, n, args.rollout_steps, d, args.repeats)}
+            if args.ppo_steps:
+                row["ppo_steps_per_s"], row["ppo_return"] = ppo_rate(arena, config, n, args.ppo_steps, d)
+            results[f"{scaling}/{d}"] = row
+            base = results[f"{scaling}/{counts[0]}"]
+            print(f"{scaling:6s} {d} device(s) {n:8d} arenas: rollout {row['rollout_steps_per_s']:.4g} steps/s "
+                  f"({row['rollout_steps_per_s'] / base['rollout_steps_per_s']:.2f}x)"
+                  + (f", ppo {row['ppo_steps_per_s']:.4g} steps/s "
+                     f"({row['ppo_steps_per_s'] / base['ppo_steps_per_s']:.2f}x), return {row['ppo_return']:.1f}"
+                     if args.ppo_steps else ""), flush=True)
+    print(json.dumps({"results": results, "environment": environment(arena=args.arena,
+                                                                      devices=len(jax.local_devices()))}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
