@@ -117,9 +117,10 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
         agent_state = agent.batch_state(agent_state, num)
     if count > 1:  # host values, the same in every process, become the mesh's global inputs
         agent_state, params = distributed.fetch((agent_state, params))
-    out = _compiled_episodes(agent, arena, num, int(max_steps), params_axis, int(filmed),
-                             mesh if count > 1 else None, jax.random.key_impl(key))(
-        np.asarray(jax.random.key_data(key)), agent_state, params, np.asarray(run_ids))
+    episodes_fn = _compiled_episodes(agent, arena, num, int(max_steps), params_axis, int(filmed),
+                                     mesh if count > 1 else None, jax.random.key_impl(key))
+    with distributed.tracing_on(mesh):  # each device steps its own arenas (jarena.core.batching.batch_step)
+        out = episodes_fn(np.asarray(jax.random.key_data(key)), agent_state, params, np.asarray(run_ids))
     physics = out.pop("physics", None)  # stays on device: the renderer pulls only what it draws
     out = jax.tree_util.tree_map(lambda x: x[: ids.size], distributed.fetch(out))
     result = EvalResult(arena=arena.build_string or arena.name, agent=agent.name, split=split, episodes=ids,
