@@ -88,6 +88,19 @@ def in_unit_interval(default, *, open_low: bool = False, open_high: bool = False
     return ranged(default, Range(0, 1, open_low, open_high))
 
 
+class ArenaSchedule:
+    """The update schedule of a config with ``num_arenas``, ``rollout_length`` and ``total_steps`` fields:
+    one update collects ``rollout_length`` steps of every arena."""
+
+    @property
+    def steps_per_update(self) -> int:
+        return self.num_arenas * self.rollout_length
+
+    @property
+    def num_updates(self) -> int:
+        return max(1, self.total_steps // self.steps_per_update)
+
+
 def make_config(cls: type[C], overrides: Mapping[str, Any] | None = None, *, agent: str = "agent") -> C:
     """Builds ``cls`` (a dataclass) from its defaults updated by ``overrides``.
 

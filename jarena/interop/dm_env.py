@@ -21,8 +21,7 @@ from dm_env import specs as dm_specs
 from jarena.core import spec as specs
 from jarena.core.arena import Arena
 from jarena.core.types import ArenaParams, Info
-
-_SEED_RANGE = 2**31
+from jarena.interop.host_values import SEED_RANGE, action_dtypes, cast_action
 
 
 def _box(spec: specs.Box, name: str) -> dm_specs.Array:
@@ -76,7 +75,7 @@ class ArenaDmEnv(dm_env.Environment):
         self._rng, self._count = np.random.default_rng(seed), 0
         self._observation_spec = array_spec(arena.observation_spec)
         self._action_spec = array_spec(arena.action_spec, "action")
-        self._action_dtypes = arena.action_spec.zeros()
+        self._action_dtypes = action_dtypes(arena)
         self._reset = jax.jit(arena.reset)
         self._step = jax.jit(arena.step)
         self._state, self._ended = None, True
@@ -85,17 +84,18 @@ class ArenaDmEnv(dm_env.Environment):
         episode = None
         if self._episodes is not None:
             episode = self._episodes[self._count % len(self._episodes)]
-        key = jax.random.key(int(self._rng.integers(_SEED_RANGE)))
+        key = jax.random.key(int(self._rng.integers(SEED_RANGE)))
         self._count += 1
         self._state, info = self._reset(key, self.params, episode)
+        info = jax.device_get(info)
         self._ended = False
         return dm_env.restart(self._observation(info))
 
     def step(self, action) -> dm_env.TimeStep:
         if self._ended:  # dm_env: the step after the last one (or the first call) starts an episode
             return self.reset()
-        action = jax.tree_util.tree_map(lambda a, s: np.asarray(a, s.dtype), action, self._action_dtypes)
-        self._state, info = self._step(self._state, action, self.params)
+        self._state, info = self._step(self._state, cast_action(action, self._action_dtypes), self.params)
+        info = jax.device_get(info)  # one transfer of everything the step returns
         observation, reward = self._observation(info), np.float64(info.reward)
         if bool(info.terminated):
             self._ended = True

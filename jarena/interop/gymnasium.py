@@ -27,10 +27,9 @@ from jarena.core import spec as specs
 from jarena.core.arena import Arena
 from jarena.core.batching import batch_reset, batch_step
 from jarena.core.types import ArenaParams, Info
+from jarena.interop.host_values import SEED_RANGE, action_dtypes, cast_action
 from jarena.render.frames import renderer
 from jarena.render.video import control_timestep
-
-_SEED_RANGE = 2**31
 
 
 def _box(spec: specs.Box) -> spaces.Box:
@@ -73,15 +72,15 @@ def _observation_space(arena: Arena, key: str | None) -> spaces.Space:
 
 
 def _observation(observation: dict, key: str | None) -> Any:
-    observation = jax.tree_util.tree_map(np.asarray, observation)
+    """The Gymnasium observation of host (numpy) ``observation``: its one array, or the dict."""
     return observation[key] if key is not None else observation
 
 
 def _info(info: Info, index: Any = ()) -> dict[str, Any]:
-    """The Gymnasium info of one arena (``index`` into a batch): episode id, step, success, reward terms and
-    metrics, and the fault bitmask (0: none)."""
+    """The Gymnasium info of one arena (``index`` into a batch) of a host (numpy) ``info``: episode id, step,
+    success, reward terms and metrics, and the fault bitmask (0: none)."""
     def take(x):
-        return np.asarray(x)[index]
+        return x[index]
 
     return {"episode_id": int(take(info.episode)), "step": int(take(info.step)), "success": bool(take(info.success)),
             "fault": int(take(info.fault)), "reward_terms": {k: float(take(v)) for k, v in info.reward_terms.items()},
@@ -112,7 +111,7 @@ class ArenaEnv(gymnasium.Env):
         self._key = _single_key(arena, flatten)
         self.observation_space = _observation_space(arena, self._key)
         self.action_space = space(arena.action_spec)
-        self._action_dtypes = arena.action_spec.zeros()
+        self._action_dtypes = action_dtypes(arena)
         self._reset = jax.jit(arena.reset)
         self._step = jax.jit(arena.step)
         self._state = None
@@ -124,15 +123,16 @@ class ArenaEnv(gymnasium.Env):
         if seed is not None:
             key = jax.random.key(seed)
         else:
-            key = jax.random.key(int(self.np_random.integers(_SEED_RANGE)))
+            key = jax.random.key(int(self.np_random.integers(SEED_RANGE)))
         self._state, info = self._reset(key, self.params, episode)
+        info = jax.device_get(info)  # one transfer of everything the env returns
         return _observation(info.observation, self._key), _info(info)
 
     def step(self, action):
         if self._state is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
-        action = jax.tree_util.tree_map(lambda a, s: np.asarray(a, s.dtype), action, self._action_dtypes)
-        self._state, info = self._step(self._state, action, self.params)
+        self._state, info = self._step(self._state, cast_action(action, self._action_dtypes), self.params)
+        info = jax.device_get(info)  # one transfer of everything the env returns
         return (_observation(info.observation, self._key), float(info.reward), bool(info.terminated),
                 bool(info.truncated), _info(info))
 
@@ -166,7 +166,7 @@ class ArenaVectorEnv(VectorEnv):
         self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, self.num_envs)
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, self.num_envs)
         n = self.num_envs
-        self._action_dtypes = arena.action_spec.zeros()
+        self._action_dtypes = action_dtypes(arena)
         self._reset = jax.jit(lambda key, params, episodes: batch_reset(arena, key, n, params, episodes=episodes))
         self._step = jax.jit(lambda state, action, params: batch_step(arena, state, action, params))
         self._state = None
@@ -184,16 +184,17 @@ class ArenaVectorEnv(VectorEnv):
         episodes = (options or {}).get("episode")
         if episodes is not None:
             episodes = np.asarray(episodes, np.int32).reshape(self.num_envs)
-        key = jax.random.key(int(base) if base is not None else int(self._np_random.integers(_SEED_RANGE)))
+        key = jax.random.key(int(base) if base is not None else int(self._np_random.integers(SEED_RANGE)))
         self._state, info = self._reset(key, self.params, episodes)
+        info = jax.device_get(info)
         return _observation(info.observation, self._key), self._infos(info, None)
 
     def step(self, actions):
         if self._state is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
-        actions = jax.tree_util.tree_map(lambda a, s: np.asarray(a, s.dtype), actions, self._action_dtypes)
-        self._state, info = self._step(self._state, actions, self.params)
-        done = np.asarray(info.done)
+        self._state, info = self._step(self._state, cast_action(actions, self._action_dtypes), self.params)
+        info = jax.device_get(info)
+        done = info.done
         return (_observation(info.observation, self._key), np.asarray(info.reward, np.float64),
                 np.asarray(info.terminated), np.asarray(info.truncated), self._infos(info, done))
 

@@ -25,7 +25,7 @@ from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.batching import batch_reset, batch_step
 from jarena.core.types import ArenaState, Info
 from jarena_agents import networks, normalizer
-from jarena_agents.config import at_least, in_unit_interval, make_config, non_negative, positive
+from jarena_agents.config import ArenaSchedule, at_least, in_unit_interval, make_config, non_negative, positive
 from jarena_agents.ppo.losses import compute_gae, ppo_loss
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
@@ -34,7 +34,7 @@ PyTree = Any
 
 
 @dataclasses.dataclass(frozen=True)
-class PPOConfig:
+class PPOConfig(ArenaSchedule):
     """PPO hyperparameters (defaults: PureJaxRL's CartPole settings)."""
 
     num_arenas: int = at_least(1, default=4)
@@ -65,13 +65,6 @@ class PPOConfig:
     # minibatch recomputes GAE over its segments with the current value network (Brax's PPO).
     unroll_length: int | None = at_least(1, default=None)
 
-    @property
-    def steps_per_update(self) -> int:
-        return self.num_arenas * self.rollout_length
-
-    @property
-    def num_updates(self) -> int:
-        return max(1, self.total_steps // self.steps_per_update)
 
 
 @struct.dataclass

@@ -37,7 +37,15 @@ from jarena.core.spec import Box, Spec
 from jarena.core.types import ArenaState, Info
 from jarena.data import BufferState, make_buffer
 from jarena_agents import networks
-from jarena_agents.config import at_least, in_unit_interval, make_config, non_negative, positive, unbounded
+from jarena_agents.config import (
+    ArenaSchedule,
+    at_least,
+    in_unit_interval,
+    make_config,
+    non_negative,
+    positive,
+    unbounded,
+)
 from jarena_agents.registry import register_agent
 from jarena_agents.sac import losses
 from jarena_agents.trainable import TrainableAgent
@@ -46,7 +54,7 @@ PyTree = Any
 
 
 @dataclasses.dataclass(frozen=True)
-class SACConfig:
+class SACConfig(ArenaSchedule):
     """SAC hyperparameters (defaults: the paper's, as in Stable-Baselines3 and CleanRL).
 
     Attributes:
@@ -90,17 +98,9 @@ class SACConfig:
     reward_scale: float = positive(1.0)
 
     @property
-    def steps_per_update(self) -> int:
-        return self.num_arenas * self.rollout_length
-
-    @property
     def gradient_steps(self) -> int:
         """Gradient steps per update: ``utd * steps_per_update``."""
         return int(round(self.utd * self.steps_per_update))
-
-    @property
-    def num_updates(self) -> int:
-        return max(1, self.total_steps // self.steps_per_update)
 
 
 def _check_config(cfg: SACConfig) -> None:

@@ -22,7 +22,7 @@ from jarena.core.batching import batch_step
 from jarena.core.types import Info
 from jarena.data.experience import transition_from
 from jarena_agents import networks
-from jarena_agents.config import at_least, non_negative, positive
+from jarena_agents.config import ArenaSchedule, at_least, non_negative, positive
 from jarena_agents.world_model import model as wm
 from jarena_agents.world_model.model import WorldModelConfig
 from jarena_agents.world_model.networks import Latent, RSSMCell
@@ -32,7 +32,7 @@ MODEL_METRICS = ("model_loss", "observation_loss", "reward_loss", "continue_loss
 
 
 @dataclasses.dataclass(frozen=True)
-class OnlineConfig(WorldModelConfig):
+class OnlineConfig(WorldModelConfig, ArenaSchedule):
     """:class:`WorldModelConfig` plus data collection and model training."""
 
     num_arenas: int = at_least(1, default=8)
@@ -47,14 +47,6 @@ class OnlineConfig(WorldModelConfig):
     learning_starts: int = at_least(0, default=5_000)  # environment steps of uniform actions first
     total_steps: int = at_least(1, default=1_000_000)
     exploration_noise: float = non_negative(0.3)  # fraction of the action half-range (planet)
-
-    @property
-    def steps_per_update(self) -> int:
-        return self.num_arenas * self.rollout_length
-
-    @property
-    def num_updates(self) -> int:
-        return max(1, self.total_steps // self.steps_per_update)
 
     @property
     def gradient_steps(self) -> int:
