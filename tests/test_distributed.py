@@ -155,6 +155,31 @@ def test_the_command_line_launches_two_processes(tmp_path):
     assert (run / "evaluation.json").is_file() and (run / "checkpoints").is_dir()
 
 
+SHARDED_ROLLOUT = """
+import re, jax, numpy as np
+import jarena, jarena_agents
+from jarena import distributed
+from jarena.runners import parallel
+arena = jarena.build_arena("classic|domain:cartpole,auto_reset:lazy")
+agent = jarena_agents.build_agent("random")
+mesh = distributed.mesh("all")
+fn = parallel._compiled(agent, arena, 8, 5, None, False, mesh, jax.random.key_impl(jax.random.key(0)))
+with distributed.tracing_on(mesh):
+    text = fn.lower(np.asarray(jax.random.key_data(jax.random.key(0))), None, agent.init(jax.random.key(1),
+                    arena.spec, 8), arena.default_params()).compile().as_text()
+print("ALL-REDUCES", len(re.findall(r"all-reduce", text)))
+"""
+
+
+def test_a_sharded_rollout_steps_each_devices_arenas_without_cross_device_traffic():
+    # a lazy auto-reset asks "did any arena finish?" every step: on a mesh each device answers for its own
+    # arenas, so the compiled rollout holds no all-reduce (the partitioner would insert one per step)
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4 --xla_cpu_multi_thread_eigen=false",
+               JAX_PLATFORMS="cpu")
+    output = _run_all([[sys.executable, "-c", SHARDED_ROLLOUT]], env)[0]
+    assert "ALL-REDUCES 0" in output, output[-2000:]
+
+
 def test_launch_checks_its_values():
     with pytest.raises(ValueError, match="HOST:PORT"):
         distributed.Launch("localhost", 2, 0)
