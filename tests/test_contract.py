@@ -23,6 +23,9 @@ ARENAS = LISTED + [
     # (or another batch size) differ in the last bit and then visibly, so it fails check_jit_consistency
     "cloth|domain:square_fabric,initial:flat,particles:10,resolution:32,horizon:3",
     "cloth|domain:rectangular_fabric,initial:flat,action:pick_and_place(2),particles:12,resolution:32,horizon:2",
+    # host arenas (Gymnasium's own envs stepped through host calls), with a jarena tool and transform on top
+    "gym|id:CartPole-v1",
+    "gym|id:Pendulum-v1(g=9.81),action:repeat(2),time_limit:50,wrap:reward_scale(0.1)",
 ]
 
 

@@ -79,6 +79,12 @@ class Arena:
 
     def __post_init__(self):
         reset_strategy(self.auto_reset)  # a clear error for an unknown name
+        if self.dynamics.on_host != (self.auto_reset == "host"):
+            raise ValueError(
+                f"arena {self.name!r}: auto_reset 'host' is for dynamics whose simulator lives outside JAX (a "
+                f"host arena, jarena.arenas.host), and such dynamics accept no other; dynamics "
+                f"{self.dynamics.name!r} {'run' if self.dynamics.on_host else 'do not run'} on the host, got "
+                f"auto_reset={self.auto_reset!r}")
 
     # ------------------------------------------------------------------ specs and params
     def default_params(self) -> ArenaParams:
@@ -148,8 +154,13 @@ class Arena:
     def privileged(self, state: ArenaState) -> ArenaState:
         """The full simulator state, for oracle and planning agents (never part of observations).
 
-        States are immutable, so this is a safe copy: planners may roll it forward with ``step``.
+        States are immutable, so this is a safe copy: planners may roll it forward with ``step``. A host
+        arena's state is a handle on a simulator outside JAX, so it has none to give (a ``TypeError``).
         """
+        if self.dynamics.on_host:
+            raise TypeError(f"arena {self.name!r} runs its simulator on the host (outside JAX): its state cannot "
+                            "be copied or rolled forward, so agents that read privileged states (planners over "
+                            "the true dynamics, oracles) cannot run on it; agents that act on observations can")
         return state
 
     # ------------------------------------------------------------------ reset and step
@@ -176,10 +187,17 @@ class Arena:
             episode = episodes_lib.sample_train_episode(jax.random.fold_in(key, 0))
         else:
             episode = jnp.asarray(episode, jnp.int32)
-        key_dynamics, key_task, key_tool = (episodes_lib.piece_key(episode, i) for i in range(3))
+        physics = self.dynamics.init(episodes_lib.piece_key(episode, 0), params.dynamics)
+        return self.begin_episode(physics, key, episode, params)
+
+    def begin_episode(self, physics: PyTree, key: jax.Array | None, episode: jax.Array, params: ArenaParams
+                      ) -> tuple[ArenaState, Info]:
+        """What :meth:`reset` does after ``dynamics.init``: episode ``episode`` (int32) from the dynamics'
+        initial ``physics`` (the task places it, the task and tool start, the sensor observes). ``key`` (or
+        ``None``) seeds the episodes after this one under auto-reset, as in :meth:`reset`."""
+        _, key_task, key_tool = (episodes_lib.piece_key(episode, i) for i in range(3))
         # The key that seeds the episodes after this one under auto-reset.
         rng = episodes_lib.piece_key(episode, 3) if key is None else jax.random.fold_in(key, 1)
-        physics = self.dynamics.init(key_dynamics, params.dynamics)
         physics = self.task.initialize(episodes_lib.piece_key(episode, 4), physics, params.dynamics, params.task)
         if self.dynamics.after_reset is not None:
             physics = self.dynamics.after_reset(physics, params.dynamics)

@@ -59,8 +59,8 @@ def auto_reset(arena: Arena, state: ArenaState, action: PyTree, params: ArenaPar
 def _start_new_episodes(arena: Arena, next_state: ArenaState, info: Info, params: ArenaParams
                         ) -> tuple[ArenaState, Info]:
     """Replaces finished episodes (``info.done``) of one arena by its strategy's new episode."""
-    new_state, new_info = reset_strategy(arena.auto_reset).new_episode(arena, next_state, params)
     done = info.done
+    new_state, new_info = reset_strategy(arena.auto_reset).new_episode(arena, next_state, params, done)
     info = info.replace(observation=tree_where(done, new_info.observation, info.observation),
                         goal=jnp.where(done, new_info.goal, info.goal),
                         step=jnp.where(done, new_info.step, info.step),

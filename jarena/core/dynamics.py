@@ -38,6 +38,11 @@ class Dynamics:
       finite: optional ``physics -> bool scalar``, whether the physics state is finite, checked by
         ``Arena.step`` after every step (see :meth:`is_finite`); set it to check a few essential arrays
         (MJX: ``qpos``, ``qvel``, ``act``) instead of every floating leaf of a large state.
+      restart: for dynamics whose simulator lives outside JAX (host arenas, :mod:`jarena.arenas.host`), where
+        ``physics`` is a handle on it: ``(physics, key, done, params) -> physics`` starts a new episode,
+        seeded by ``key``, in the simulator where ``done`` (bool scalar) and keeps the others. Such dynamics
+        run under the ``host`` auto-reset strategy only (:mod:`jarena.core.resets`), and their states
+        cannot be copied or rolled forward by planners.
     """
 
     init: Callable[[jax.Array, PyTree], PyTree]
@@ -50,6 +55,12 @@ class Dynamics:
     name: str = "dynamics"
     after_reset: Callable[[PyTree, PyTree], PyTree] | None = None
     finite: Callable[[PyTree], jax.Array] | None = None
+    restart: Callable[[PyTree, jax.Array, jax.Array, PyTree], PyTree] | None = None
+
+    @property
+    def on_host(self) -> bool:
+        """Whether the simulator lives outside JAX (``restart`` is set): states are handles, not values."""
+        return self.restart is not None
 
     def no_op_control(self) -> PyTree:
         return self.no_op() if self.no_op is not None else self.control_spec.zeros()

@@ -107,7 +107,8 @@ def check_vmap(arena: Arena, key: jax.Array, batch: int = 3) -> None:
 
     batched_params = jax.tree_util.tree_map(lambda *xs: jnp.stack(xs),
                                             *[_perturbed(params, 1.0 + 0.01 * i) for i in range(batch)])
-    states, infos = jax.jit(jax.vmap(arena.reset, in_axes=(None, 0)))(key, batched_params)
+    # one key per arena, as batch_reset(..., params_axis=0) gives (a host arena opens one simulator per key)
+    states, infos = jax.jit(jax.vmap(arena.reset, in_axes=(0, 0)))(keys, batched_params)
     _, stepped = jax.jit(jax.vmap(arena.step, in_axes=(0, 0, 0)))(states, actions, batched_params)
     for leaf, one in zip(jax.tree_util.tree_leaves(stepped), jax.tree_util.tree_leaves(single), strict=True):
         assert leaf.shape == (batch,) + one.shape, f"{arena.name}: vmap over params gives leaf shape {leaf.shape}"
