@@ -78,6 +78,9 @@ def arena_model(arena: Arena, params: ArenaParams | None = None) -> Model:
     """The exact model of ``arena``: ``arena.step`` on the privileged state with fixed ``params``
     (default: ``arena.default_params()``). ``done`` is ``info.terminated | info.truncated``."""
     name = arena.build_string or arena.name
+    if arena.dynamics.on_host:
+        raise ValueError("its simulator runs on the host (a host arena), whose states cannot be copied or rolled "
+                         "forward; plan over a learned model instead (planet)")
     check_action_spec(arena.action_spec, name)
     params = arena.default_params() if params is None else params
 

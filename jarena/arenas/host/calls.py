@@ -14,6 +14,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.experimental import io_callback
 
 PyTree = Any
@@ -30,8 +31,11 @@ def batched_host_call(fn: Callable[..., PyTree], result: Callable[[int], PyTree]
       ``(*arrays) -> pytree``: one arena's inputs (no batch axis) to its outputs; vmap it for a batch.
     """
 
+    def on_host(*args):  # io_callback hands over jax Arrays: numpy ones are cheaper to index and compute with
+        return fn(*jax.tree_util.tree_map(np.asarray, args))
+
     def call(size: int, *args):
-        return io_callback(fn, result(size), *args, ordered=False)
+        return io_callback(on_host, result(size), *args, ordered=False)
 
     @jax.custom_batching.custom_vmap
     def one(*args):

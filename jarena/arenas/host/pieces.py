@@ -65,28 +65,34 @@ def _structs(spec: Dict, size: int) -> dict[str, jax.ShapeDtypeStruct]:
 def host_dynamics(pool: EnvPool, observation: Dict, control: Spec, name: str = "host") -> Dynamics:
     """Dynamics stepping ``pool``'s simulators, whose observations have ``observation``'s spec and whose
     controls have ``control``'s (a ``Box`` or ``Discrete``). No params: a host simulator's constants are
-    its own."""
-    flags = lambda size: jax.ShapeDtypeStruct((size,), jnp.bool_)  # noqa: E731
+    its own.
+
+    Each host call costs a fixed overhead plus a little per array that crosses (about 28 + 8 us per array on
+    a CPU), so the calls pack what they can: ids, seeds and masks into one int32 array, reward and flags into
+    one float32 array."""
     start = batched_host_call(
-        pool.start, lambda size: (jax.ShapeDtypeStruct((size,), jnp.int32),
-                                  jax.ShapeDtypeStruct((size,), jnp.int32), _structs(observation, size)))
+        pool.start, lambda size: (jax.ShapeDtypeStruct((size, 2), jnp.int32), _structs(observation, size)))
     step_call = batched_host_call(
-        pool.step, lambda size: (_structs(observation, size), jax.ShapeDtypeStruct((size,), jnp.float32),
-                                 flags(size), flags(size)))
-    restart_call = batched_host_call(pool.restart, lambda size: _structs(observation, size))
+        lambda handle, action: pool.step(handle[:, 0], handle[:, 1], action, packed=True),
+        lambda size: (_structs(observation, size), jax.ShapeDtypeStruct((size, 3), jnp.float32)))
+    restart_call = batched_host_call(
+        lambda packed: pool.restart(packed[:, 0], packed[:, 1], packed[:, 2], packed[:, 3].astype(bool)),
+        lambda size: _structs(observation, size))
     no = jnp.zeros((), bool)
 
     def init(key, params):
-        batch, slot, obs = start(seed_of(key))
-        return HostPhysics(batch=batch, slot=slot, observation=obs, reward=jnp.zeros((), jnp.float32),
+        handle, obs = start(seed_of(key))
+        return HostPhysics(batch=handle[0], slot=handle[1], observation=obs, reward=jnp.zeros((), jnp.float32),
                            terminated=no, truncated=no)
 
     def step(physics: HostPhysics, action, params):
-        obs, reward, terminated, truncated = step_call(physics.batch, physics.slot, jnp.asarray(action))
-        return physics.replace(observation=obs, reward=reward, terminated=terminated, truncated=truncated)
+        obs, outcome = step_call(jnp.stack([physics.batch, physics.slot]), jnp.asarray(action))
+        return physics.replace(observation=obs, reward=outcome[0], terminated=outcome[1] > 0,
+                               truncated=outcome[2] > 0)
 
     def restart(physics: HostPhysics, key, done, params):
-        obs = restart_call(physics.batch, physics.slot, seed_of(key), jnp.asarray(done, bool))
+        packed = jnp.stack([physics.batch, physics.slot, seed_of(key), jnp.asarray(done, jnp.int32)])
+        obs = restart_call(packed)
         return physics.replace(observation=obs, reward=jnp.zeros((), jnp.float32), terminated=no, truncated=no)
 
     return Dynamics(init=init, step=step, control_spec=control, restart=restart, name=name)

@@ -92,8 +92,9 @@ class EnvPool:
         self._lock = threading.Lock()
 
     # ------------------------------------------------------------------ the three host calls
-    def start(self, seeds: np.ndarray) -> tuple[np.ndarray, np.ndarray, PyTree]:
-        """Opens a batch of ``len(seeds)`` simulators reset with ``seeds``: ``(batch ids, slots, observations)``."""
+    def start(self, seeds: np.ndarray) -> tuple[np.ndarray, PyTree]:
+        """Opens a batch of ``len(seeds)`` simulators reset with ``seeds``: ``(handles, observations)``, where
+        ``handles`` (B, 2) int32 holds each simulator's batch id and slot."""
         seeds = np.asarray(seeds)
         size = len(seeds)
         with self._lock:
@@ -109,55 +110,66 @@ class EnvPool:
                 _, old = self._open.popitem(last=False)
                 self._spare[old.env.num_envs].append(old.env)
                 self._close_spares(keep=self.max_batches)
-        return np.full(size, batch_id, np.int32), np.arange(size, dtype=np.int32), observation
+        handles = np.stack([np.full(size, batch_id, np.int32), np.arange(size, dtype=np.int32)], axis=1)
+        return handles, observation
 
-    def step(self, batch_ids: np.ndarray, slots: np.ndarray, actions: PyTree
-             ) -> tuple[PyTree, np.ndarray, np.ndarray, np.ndarray]:
+    def step(self, batch_ids: np.ndarray, slots: np.ndarray, actions: PyTree, packed: bool = False) -> tuple:
         """Steps every simulator of one batch: ``(observations, rewards, terminated, truncated)`` in the order
-        of ``slots`` (a permutation of the batch's slots)."""
+        of ``slots`` (a permutation of the batch's slots); with ``packed``, ``(observations, outcome)`` where
+        ``outcome`` (B, 3) float32 holds reward, terminated and truncated."""
         with self._lock:
             batch, order = self._batch(batch_ids, slots, "step")
-            inverse = np.argsort(order)
             if batch.ended.any():  # an ended simulator is reset out of sight before the vector env steps it
                 batch.env.reset(options={"reset_mask": batch.ended.copy()})
                 batch.ended[:] = False
-            actions = self._cast_action(_rows(actions, inverse))  # the vector env's order
+            if order is not None:
+                actions = _rows(actions, np.argsort(order))  # the vector env's order
+            actions = self._cast_action(actions)
             observation, reward, terminated, truncated, _ = batch.env.step(actions)
             observation = self._observe(observation)
             reward = np.asarray(reward, np.float32)
             terminated, truncated = np.asarray(terminated, bool), np.asarray(truncated, bool)
             batch.ended |= terminated | truncated
             frozen = batch.frozen
-            observation = _set_rows(observation, frozen, batch.observation)
-            reward = np.where(frozen, np.float32(0), reward)
-            terminated = np.where(frozen, batch.terminated, terminated)
-            truncated = np.where(frozen, batch.truncated, truncated)
+            if frozen.any():  # arenas stepped past the end of their episode see that end again
+                observation = _set_rows(observation, frozen, batch.observation)
+                reward = np.where(frozen, np.float32(0), reward)
+                terminated = np.where(frozen, batch.terminated, terminated)
+                truncated = np.where(frozen, batch.truncated, truncated)
             batch.frozen |= terminated | truncated
             batch.observation, batch.terminated, batch.truncated = observation, terminated, truncated
-            return _rows(observation, order), reward[order], terminated[order], truncated[order]
+            if order is not None:
+                observation, reward = _rows(observation, order), reward[order]
+                terminated, truncated = terminated[order], truncated[order]
+            if packed:
+                return observation, np.stack([reward, terminated, truncated], axis=1).astype(np.float32)
+            return observation, reward, terminated, truncated
 
     def restart(self, batch_ids: np.ndarray, slots: np.ndarray, seeds: np.ndarray, mask: np.ndarray) -> PyTree:
         """Resets the simulators where ``mask`` with ``seeds``; returns every slot's observation."""
         with self._lock:
             batch, order = self._batch(batch_ids, slots, "restart")
-            inverse = np.argsort(order)
-            mask, seeds = np.asarray(mask, bool)[inverse], np.asarray(seeds)[inverse]
+            mask, seeds = np.asarray(mask, bool), np.asarray(seeds)
+            if order is not None:
+                inverse = np.argsort(order)
+                mask, seeds = mask[inverse], seeds[inverse]
             if mask.any():
                 observation = self._observe(batch.env.reset(seed=[int(s) for s in seeds],
                                                             options={"reset_mask": mask.copy()})[0])
                 batch.observation = _set_rows(batch.observation, mask, observation)
                 batch.frozen[mask] = batch.ended[mask] = False
                 batch.terminated[mask] = batch.truncated[mask] = False
-            return _rows(batch.observation, order)
+            return batch.observation if order is None else _rows(batch.observation, order)
 
     # ------------------------------------------------------------------ bookkeeping
-    def _batch(self, batch_ids: np.ndarray, slots: np.ndarray, what: str) -> tuple[Batch, np.ndarray]:
-        """The open batch that ``batch_ids`` name (one id), made most recently used, and ``slots`` checked."""
-        ids = np.unique(batch_ids)
-        if len(ids) != 1:
-            raise HostArenaError(f"{self.name}: one {what} mixes arenas of different batches {ids.tolist()}; a host "
-                                 "arena steps the arenas of one batch_reset together")
-        batch_id = int(ids[0])
+    def _batch(self, batch_ids: np.ndarray, slots: np.ndarray, what: str) -> tuple[Batch, np.ndarray | None]:
+        """The open batch that ``batch_ids`` name (one id), made most recently used, and ``slots`` checked:
+        ``None`` when they are the batch's slots in order, else the permutation."""
+        batch_id = int(batch_ids[0])
+        if np.any(batch_ids != batch_id):
+            raise HostArenaError(f"{self.name}: one {what} mixes arenas of different batches "
+                                 f"{np.unique(batch_ids).tolist()}; a host arena steps the arenas of one batch_reset "
+                                 "together")
         if not 0 <= batch_id < self._next_id:
             raise HostArenaError(
                 f"{self.name}: batch {batch_id} was never opened in this process: a host arena's state is a handle on "
@@ -171,6 +183,8 @@ class EnvPool:
         self._open.move_to_end(batch_id)
         batch = self._open[batch_id]
         slots = np.asarray(slots)
+        if len(slots) == batch.env.num_envs and np.array_equal(slots, np.arange(len(slots))):
+            return batch, None  # the usual case: the batch as batch_reset made it
         if len(np.unique(slots)) < len(slots):
             raise HostArenaError(f"{self.name}: a {what} got several copies of one arena of batch {batch_id} (slots "
                                  f"{slots.tolist()}), which share one simulator: reset each arena with its own key "
