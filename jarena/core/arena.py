@@ -184,7 +184,7 @@ class Arena:
         if episode is None:
             if key is None:
                 raise ValueError("reset() needs a key, an episode id, or both")
-            episode = episodes_lib.sample_train_episode(jax.random.fold_in(key, 0))
+            episode = episodes_lib.episode_of_key(key)
         else:
             episode = jnp.asarray(episode, jnp.int32)
         physics = self.dynamics.init(episodes_lib.piece_key(episode, 0), params.dynamics)
@@ -195,7 +195,7 @@ class Arena:
         """What :meth:`reset` does after ``dynamics.init``: episode ``episode`` (int32) from the dynamics'
         initial ``physics`` (the task places it, the task and tool start, the sensor observes). ``key`` (or
         ``None``) seeds the episodes after this one under auto-reset, as in :meth:`reset`."""
-        _, key_task, key_tool = (episodes_lib.piece_key(episode, i) for i in range(3))
+        key_task, key_tool = episodes_lib.piece_key(episode, 1), episodes_lib.piece_key(episode, 2)
         # The key that seeds the episodes after this one under auto-reset.
         rng = episodes_lib.piece_key(episode, 3) if key is None else jax.random.fold_in(key, 1)
         physics = self.task.initialize(episodes_lib.piece_key(episode, 4), physics, params.dynamics, params.task)

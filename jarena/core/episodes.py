@@ -31,6 +31,11 @@ def sample_train_episode(key: jax.Array) -> jax.Array:
     return ((bits >> 2) | jnp.uint32(TRAIN_LOW)).astype(jnp.int32)
 
 
+def episode_of_key(key: jax.Array) -> jax.Array:
+    """The training episode id that a reset ``key`` starts (and that an auto-reset draws from ``state.rng``)."""
+    return sample_train_episode(jax.random.fold_in(key, 0))
+
+
 def split_episodes(split: str, num_val: int, num_eval: int) -> range:
     """The episode ids of ``split``: a fixed list for ``val`` and ``eval``, the sampling range for train."""
     if split == "eval":

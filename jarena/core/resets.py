@@ -28,7 +28,7 @@ from typing import Protocol
 import jax
 
 from jarena.core.dynamics import Dynamics
-from jarena.core.episodes import piece_key, sample_train_episode
+from jarena.core.episodes import episode_of_key, piece_key
 from jarena.core.types import ArenaParams, ArenaState, Info
 
 Array = jax.Array
@@ -54,7 +54,7 @@ def restarted_episode(arena: Arena, state: ArenaState, params: ArenaParams, done
                       ) -> tuple[ArenaState, Info]:
     """The episode :func:`fresh_episode` would draw, started in a host simulator where ``done``."""
     key = state.rng.unpack()
-    episode = sample_train_episode(jax.random.fold_in(key, 0))  # as Arena.reset draws it from the same key
+    episode = episode_of_key(key)
     physics = arena.dynamics.restart(state.physics, piece_key(episode, 0), done, params.dynamics)
     return arena.begin_episode(physics, key, episode, params)
 

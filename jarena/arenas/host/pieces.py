@@ -73,7 +73,7 @@ def host_dynamics(pool: EnvPool, observation: Dict, control: Spec, name: str = "
     start = batched_host_call(
         pool.start, lambda size: (jax.ShapeDtypeStruct((size, 2), jnp.int32), _structs(observation, size)))
     step_call = batched_host_call(
-        lambda handle, action: pool.step(handle[:, 0], handle[:, 1], action, packed=True),
+        lambda handle, action: pool.step(handle[:, 0], handle[:, 1], action),
         lambda size: (_structs(observation, size), jax.ShapeDtypeStruct((size, 3), jnp.float32)))
     restart_call = batched_host_call(
         lambda packed: pool.restart(packed[:, 0], packed[:, 1], packed[:, 2], packed[:, 3].astype(bool)),

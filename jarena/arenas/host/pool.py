@@ -113,10 +113,10 @@ class EnvPool:
         handles = np.stack([np.full(size, batch_id, np.int32), np.arange(size, dtype=np.int32)], axis=1)
         return handles, observation
 
-    def step(self, batch_ids: np.ndarray, slots: np.ndarray, actions: PyTree, packed: bool = False) -> tuple:
-        """Steps every simulator of one batch: ``(observations, rewards, terminated, truncated)`` in the order
-        of ``slots`` (a permutation of the batch's slots); with ``packed``, ``(observations, outcome)`` where
-        ``outcome`` (B, 3) float32 holds reward, terminated and truncated."""
+    def step(self, batch_ids: np.ndarray, slots: np.ndarray, actions: PyTree) -> tuple[PyTree, np.ndarray]:
+        """Steps every simulator of one batch: ``(observations, outcome)`` in the order of ``slots`` (a
+        permutation of the batch's slots), where ``outcome`` (B, 3) float32 holds reward, terminated and
+        truncated (one array: each array a host call returns costs time)."""
         with self._lock:
             batch, order = self._batch(batch_ids, slots, "step")
             if batch.ended.any():  # an ended simulator is reset out of sight before the vector env steps it
@@ -138,12 +138,10 @@ class EnvPool:
                 truncated = np.where(frozen, batch.truncated, truncated)
             batch.frozen |= terminated | truncated
             batch.observation, batch.terminated, batch.truncated = observation, terminated, truncated
+            outcome = np.stack([reward, terminated, truncated], axis=1).astype(np.float32)
             if order is not None:
-                observation, reward = _rows(observation, order), reward[order]
-                terminated, truncated = terminated[order], truncated[order]
-            if packed:
-                return observation, np.stack([reward, terminated, truncated], axis=1).astype(np.float32)
-            return observation, reward, terminated, truncated
+                observation, outcome = _rows(observation, order), outcome[order]
+            return observation, outcome
 
     def restart(self, batch_ids: np.ndarray, slots: np.ndarray, seeds: np.ndarray, mask: np.ndarray) -> PyTree:
         """Resets the simulators where ``mask`` with ``seeds``; returns every slot's observation."""
@@ -211,7 +209,3 @@ class EnvPool:
                     env.close()
             self._open.clear()
             self._spare.clear()
-
-    @property
-    def open_batches(self) -> int:
-        return len(self._open)
