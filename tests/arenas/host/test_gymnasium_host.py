@@ -147,6 +147,8 @@ def test_bad_input_names_the_choices():
         jarena.build_arena("gym|id:CartPole-v1,vectorization:threads")
     with pytest.raises(TypeError, match="MultiDiscrete spaces are not supported; supported: Box, Discrete, Dict"):
         from_gymnasium(lambda: _Multi())
+    with pytest.raises(ValueError, match="max_batches must be at least 1, got 0"):
+        from_gymnasium("CartPole-v1", max_batches=0)
     with pytest.raises(ValueError, match="auto_reset 'host' is for dynamics whose simulator lives outside JAX"):
         jarena.build_arena("classic|domain:cartpole,auto_reset:host")
 
@@ -218,3 +220,20 @@ def test_async_workers_give_the_same_episodes_as_sync():
             state, info = step(state, jnp.full(3, t % 2, jnp.int32))
         results.append(np.asarray(info.observation["state"]))
     np.testing.assert_array_equal(*results)
+
+
+def test_dict_and_image_spaces_become_observation_keys_and_odd_spaces_are_refused():
+    from gymnasium import spaces
+
+    from jarena.arenas.host.gymnasium import action_spec, observation_spec
+    spec, key = observation_spec(spaces.Dict({"joints": spaces.Box(-1, 1, (3,), np.float64),
+                                              "mode": spaces.Discrete(4)}))
+    assert key is None and spec.spaces["joints"] == jarena.Box(-1, 1, (3,), jnp.float32)
+    assert spec.spaces["mode"] == jarena.Discrete(4)
+    spec, key = observation_spec(spaces.Box(0, 255, (8, 8, 3), np.uint8))
+    assert key == "pixels" and spec.spaces["pixels"].dtype == np.uint8
+    assert observation_spec(spaces.Box(-1, 1, (2,), np.int64))[0].spaces["state"].dtype == np.int32
+    with pytest.raises(TypeError, match="Discrete spaces must start at 0, got start=1"):
+        action_spec(spaces.Discrete(3, start=1))
+    with pytest.raises(TypeError, match="Box of dtype bool is not supported"):
+        observation_spec(spaces.Box(0, 1, (2,), bool))
