@@ -8,6 +8,7 @@ import numpy as np
 
 from jarena.arenas.cloth import camera as camera_lib
 from jarena.arenas.cloth import tools as tools_lib
+from jarena.arenas.cloth.collision import dot
 from jarena.arenas.cloth.mesh import ClothMesh
 
 
@@ -46,7 +47,8 @@ def idle(num_pickers: int) -> jax.Array:
 
 def covered(positions: jax.Array, particles: jax.Array, spacing: float) -> jax.Array:
     """bool (H,): whether another layer lies on top of each of ``particles`` (H,) (a pinch would take it)."""
-    xy = jnp.linalg.norm(positions[None, :, :2] - positions[particles, None, :2], axis=-1)
+    offset = positions[None, :, :2] - positions[particles, None, :2]
+    xy = jnp.sqrt(dot(offset, offset))
     return jnp.any((xy < spacing) & (positions[None, :, 2] > positions[particles, None, 2] + 0.4 * spacing), axis=-1)
 
 
@@ -71,7 +73,7 @@ def pull(positions: jax.Array, handles: jax.Array, targets: jax.Array, eligible:
       since a pinch takes the top layer; pickers left without an eligible handle idle), and the largest
       eligible handle's distance to its target, metres.
     """
-    error = jnp.linalg.norm(positions[handles, :2] - targets, axis=-1)
+    error = jnp.sqrt(dot(positions[handles, :2] - targets, positions[handles, :2] - targets))
     ranked = jnp.where(covered(positions, handles, spacing), error * 0.25, error)
     ranked = jnp.where(eligible, ranked, -1.0)
     rank, worst = jax.lax.top_k(ranked, pickers)

@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 
 from jarena.arenas.cloth import coverage as coverage_lib
+from jarena.arenas.cloth.collision import dot, fixed_sum
 from jarena.arenas.cloth.mesh import ClothMesh
 from jarena.core.agent import Agent
 from jarena_agents.basic import SpecState
@@ -44,17 +45,19 @@ def flat_goal(positions: jax.Array, mesh: ClothMesh, reach: float) -> jax.Array:
     the rest grid nearest the particles in least squares (2-D Kabsch), with its centre kept within
     ``reach`` metres of the origin on each axis so that the goal stays in view.
     """
+    # every sum in a fixed order (collision.fixed_sum, not jnp.sum or a matmul, whose order can change with
+    # the batch size): the oracle acts the same, to the bit, in any batch
     rest = jnp.asarray(mesh.rest_positions[:, :2])  # centred at the origin
     now = positions[:, :2]
-    centre = jnp.mean(now, axis=0)
+    centre = fixed_sum(now, axis=0) / now.shape[0]
     best, best_cost = None, None
     for mirror in (jnp.array([1.0, 1.0]), jnp.array([1.0, -1.0])):
         source = rest * mirror
-        h = source.T @ (now - centre)
+        h = fixed_sum(source[:, :, None] * (now - centre)[:, None, :], axis=0)
         angle = jnp.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
         c, s = jnp.cos(angle), jnp.sin(angle)
-        goal = source @ jnp.array([[c, s], [-s, c]])
-        cost = jnp.sum((goal + centre - now) ** 2)
+        goal = jnp.stack([source[:, 0] * c - source[:, 1] * s, source[:, 0] * s + source[:, 1] * c], -1)
+        cost = fixed_sum(dot(goal + centre - now, goal + centre - now), axis=0)
         if best is None:
             best, best_cost = goal, cost
         else:

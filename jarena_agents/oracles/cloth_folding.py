@@ -25,6 +25,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jarena.arenas.cloth.collision import fixed_matmul, fixed_sum
 from jarena.arenas.cloth.mesh import ClothMesh
 from jarena.core.agent import Agent
 from jarena.core.arena import ArenaSpec
@@ -60,7 +61,10 @@ def flat_pose(goal: jax.Array, mesh: ClothMesh) -> jax.Array:
     """
     material = jnp.concatenate([jnp.asarray(mesh.rest_positions[:, :2]), jnp.ones((mesh.num_particles, 1))], -1)
     weighted = material * floor_layer(goal, mesh).astype(jnp.float32)[:, None]
-    return material @ jnp.linalg.solve(weighted.T @ material, weighted.T @ goal[:, :2])
+    # sums in a fixed order (not matmuls, whose order can change with the batch size): the same in any batch
+    gram = fixed_sum(weighted[:, :, None] * material[:, None, :], axis=0)
+    moment = fixed_sum(weighted[:, :, None] * goal[:, None, :2], axis=0)
+    return fixed_matmul(material, jnp.linalg.solve(gram, moment))
 
 
 def make_cloth_folding_oracle(config=None) -> Agent:

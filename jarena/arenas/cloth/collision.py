@@ -56,6 +56,17 @@ def fixed_sum(x: jax.Array, axis: int) -> jax.Array:
     return x[0]
 
 
+def fixed_matmul(a: jax.Array, b: jax.Array) -> jax.Array:
+    """``a @ b`` for a small inner size, (..., n, k) @ (k, m), as explicit adds in a fixed order (see :func:`dot`).
+
+    A batched matmul's summation order can change with the batch size; this one's does not.
+    """
+    total = a[..., :, 0, None] * b[0]
+    for i in range(1, a.shape[-1]):
+        total = total + a[..., :, i, None] * b[i]
+    return total
+
+
 def _hash(cells: jax.Array, buckets: int) -> jax.Array:
     """int32 bucket in ``[0, buckets)`` of integer cell coordinates ``(..., 3)`` (buckets a power of 2)."""
     c = cells.astype(jnp.uint32)

@@ -15,7 +15,7 @@ from flax import struct
 
 from jarena.arenas.cloth import camera as camera_lib
 from jarena.arenas.cloth import coverage as coverage_lib
-from jarena.arenas.cloth.collision import dot, fixed_sum
+from jarena.arenas.cloth.collision import dot, fixed_matmul, fixed_sum
 from jarena.arenas.cloth.mesh import ClothMesh
 from jarena.core.task import Task
 from jarena.core.tree import as_float32
@@ -140,10 +140,10 @@ def folded_goals(mesh: ClothMesh, kind: str, flat: jax.Array) -> jax.Array:
     gram_inverse = np.linalg.inv(material.T @ material).astype(np.float32)
     centre = fixed_sum(flat[:, :2], axis=0) / flat.shape[0]
     cross = fixed_sum((flat[:, :2] - centre)[:, :, None] * jnp.asarray(material, jnp.float32)[:, None, :], axis=0)
-    linear = cross @ gram_inverse  # (2, 2): world x-y = linear @ material + centre
+    linear = fixed_matmul(cross, gram_inverse)  # (2, 2): world x-y = linear @ material + centre
     goals = []
     for fold in FOLDS[kind](mesh):
-        folded = jnp.asarray(fold.reflect(material), jnp.float32) @ linear.T + centre
+        folded = fixed_matmul(jnp.asarray(fold.reflect(material), jnp.float32), linear.T) + centre
         z = np.where(fold.moving(material), 1.2, 0.4) * mesh.spacing
         goals.append(jnp.concatenate([folded, jnp.asarray(z, jnp.float32)[:, None]], axis=-1))
     return jnp.stack(goals)
