@@ -7,6 +7,7 @@ distance <= 0.1) and the normalised fold distance reached. Each (task, agent) ru
 batch, one compiled scan over the actions, and prints one table row.
 
     python benchmarks/cloth_oracle.py --tasks flattening --agents oracle,random --episodes 64 --actions 10
+    python benchmarks/cloth_oracle.py --agents oracle --config '{"lookahead": false}'   # the analytic pull alone
     python benchmarks/cloth_oracle.py --tasks side_fold,diagonal_fold,one_corner_inward --initial flat --actions 4
 """
 
@@ -24,7 +25,7 @@ import numpy as np
 import jarena
 from jarena.arenas.cloth import tiers as tiers_lib
 from jarena.runners.loop import act_and_step
-from jarena_agents import build_agent
+from jarena_agents import build_agent, list_agents
 
 ORACLES = {"flattening": "oracle_cloth_flattening"}
 """Task -> its oracle (every fold: ``oracle_cloth_folding``)."""
@@ -81,11 +82,15 @@ def main(argv=None) -> int:
         metric = "normalised_fold_distance" if folding else "normalised_coverage"
         for name in args.agents.split(","):
             agent_name = ORACLES.get(task, "oracle_cloth_folding") if name == "oracle" else name
-            agent = build_agent(agent_name, json.loads(args.config)) if name == "oracle" else build_agent(agent_name)
+            config = json.loads(args.config) if name == "oracle" else {}
+            if agent_name in list_agents("arena_model"):  # it simulates the arena it acts in
+                config.setdefault("arena", arena.build_string)
+            agent = build_agent(agent_name, config)
             initial, values, success, seconds = run(arena, agent, args.actions, metric)
             best = values.min(0) if folding else values.max(0)
             print(f"{task} {agent_name}: initial {initial}\nfinal {values[-1]}\nbest {best}")
-            row = {"task": task, "initial_state": initial_state, "agent": agent_name, "episodes": len(initial),
+            label = agent_name + (f" {args.config}" if name == "oracle" and json.loads(args.config) else "")
+            row = {"task": task, "initial_state": initial_state, "agent": label, "episodes": len(initial),
                    "actions": args.actions, "initial": float(initial.mean()), "final": float(values[-1].mean()),
                    "best": float(best.mean()), "success": int(success.any(0).sum()), "seconds": seconds}
             if not folding:

@@ -50,13 +50,13 @@ def _agent_config(args, arena) -> dict:
     run trained with, then the ``--set`` overrides.
 
     On arenas without a tuned ``default`` config the agent runs on its built-in defaults (with a note on
-    stderr, except for planners). Planners plan with the arena they act in: their config's ``arena`` is
-    the evaluated arena's string.
+    stderr, except for agents tagged ``arena_model``). Those (the planners, the cloth flattening oracle's
+    lookahead) simulate the arena they act in: their config's ``arena`` is the evaluated arena's string.
     """
     import jarena
     import jarena_agents
 
-    planner = args.agent in jarena_agents.list_agents("planner")
+    planner = args.agent in jarena_agents.list_agents("arena_model")  # they plan in the arena's own dynamics
     try:
         config = jarena.retrieve_config(args.agent, arena, args.config)
     except FileNotFoundError as e:

@@ -59,6 +59,14 @@ def handles(mesh: ClothMesh) -> np.ndarray:
     return np.array([mesh.index(i, j) for i, j in points], np.int32)
 
 
+def edge_handles(mesh: ClothMesh) -> np.ndarray:
+    """int32 (16,): :func:`handles` and the eight quarter points of the edges."""
+    r, c = mesh.rows - 1, mesh.cols - 1
+    quarters = [(0, c // 4), (0, 3 * c // 4), (r // 4, c), (3 * r // 4, c), (r, 3 * c // 4), (r, c // 4),
+                (3 * r // 4, 0), (r // 4, 0)]
+    return np.concatenate([handles(mesh), np.array([mesh.index(i, j) for i, j in quarters], np.int32)])
+
+
 def pull(positions: jax.Array, handles: jax.Array, targets: jax.Array, eligible: jax.Array, pickers: int,
          spacing: float, coordinates: str) -> tuple[jax.Array, jax.Array]:
     """The oracles' move: pick the ``pickers`` eligible handles farthest from their targets and place them there.

@@ -64,4 +64,4 @@ def make_cem(config=None, arena=None, model=None):
     return make_planner("cem", CEMConfig, cem_improve, config, arena, model)
 
 
-register_agent("cem", make_cem, tags=("planner",))
+register_agent("cem", make_cem, tags=("planner", "arena_model"))

@@ -51,4 +51,4 @@ def make_mppi(config=None, arena=None, model=None):
     return make_planner("mppi", MPPIConfig, mppi_improve, config, arena, model)
 
 
-register_agent("mppi", make_mppi, tags=("planner",))
+register_agent("mppi", make_mppi, tags=("planner", "arena_model"))

@@ -47,4 +47,4 @@ def make_predictive_sampling(config=None, arena=None, model=None):
                         model)
 
 
-register_agent("predictive_sampling", make_predictive_sampling, tags=("planner",))
+register_agent("predictive_sampling", make_predictive_sampling, tags=("planner", "arena_model"))

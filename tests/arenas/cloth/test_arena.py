@@ -125,7 +125,7 @@ def test_the_flattening_oracle_raises_coverage():
     from jarena_agents.registry import build_agent
 
     arena = jarena.build_arena("cloth|domain:square_fabric,initial:crumpled,particles:16,resolution:32,horizon:6")
-    oracle = build_agent("oracle_cloth_flattening")
+    oracle = build_agent("oracle_cloth_flattening", {"lookahead": False})
     result = jarena.evaluate(oracle, arena, episodes=list(range(8)))
     _, start = jax.vmap(lambda e: arena.reset(episode=e))(jnp.arange(8))
     before = np.asarray(start.metrics["normalised_coverage"])
