@@ -36,6 +36,14 @@ def arena_string(task: str, initial: str, particles: int, actions: int, episodes
             f"horizon:{actions},eval_episodes:{episodes}")
 
 
+def tuned_config(agent: str, arena) -> dict:
+    """The agent's committed config for the arena (``configs/``), else its defaults."""
+    try:
+        return dict(jarena.retrieve_config(agent, arena))
+    except FileNotFoundError:
+        return {}
+
+
 def run(arena, agent, actions: int, metric: str):
     """(initial, per-action metric (A, E), per-action success (A, E), seconds) over the arena's eval episodes."""
     ids = jnp.asarray(list(arena.episodes("eval")))
@@ -82,9 +90,9 @@ def main(argv=None) -> int:
         metric = "normalised_fold_distance" if folding else "normalised_coverage"
         for name in args.agents.split(","):
             agent_name = ORACLES.get(task, "oracle_cloth_folding") if name == "oracle" else name
-            config = json.loads(args.config) if name == "oracle" else {}
+            config = json.loads(args.config) if name == "oracle" else tuned_config(agent_name, arena)
             if agent_name in list_agents("arena_model"):  # it simulates the arena it acts in
-                config.setdefault("arena", arena.build_string)
+                config["arena"] = arena.build_string
             agent = build_agent(agent_name, config)
             initial, values, success, seconds = run(arena, agent, args.actions, metric)
             best = values.min(0) if folding else values.max(0)
