@@ -257,6 +257,7 @@ def _cmd_collect(args) -> int:
 
     import jarena
     import jarena_agents
+    from jarena import distributed
     from jarena.data.dataset import TrajectoryDataset
 
     if args.trajectories < 1:
@@ -276,12 +277,15 @@ def _cmd_collect(args) -> int:
     with TrajectoryDataset(args.out, "a" if args.append else "w", **jarena.data.configs_for(arena)) as dataset:
         before = dataset.num_trajectories()
         num_arenas = args.batch or min(args.trajectories, 64)
+        devices = distributed.mesh(args.devices).devices.size
         print(f"collecting {args.trajectories} trajectories of {agent.name!r} on {args.arena!r} into {args.out} "
-              f"({num_arenas} arenas in parallel on {jax.devices()[0].platform}, seed {args.seed})", flush=True)
+              f"({num_arenas} arenas in parallel on {devices} {jax.devices()[0].platform} device(s), seed "
+              f"{args.seed})", flush=True)
         start = time.perf_counter()
         # Appending folds the trajectories already there into the key, so each run adds new episodes.
         stored = jarena.collect(agent, arena, dataset, args.trajectories, key=jax.random.fold_in(
-            jax.random.key(args.seed), before), num_arenas=num_arenas, progress=not args.no_progress)
+            jax.random.key(args.seed), before), num_arenas=num_arenas, progress=not args.no_progress,
+            devices=args.devices)
         seconds = time.perf_counter() - start
         lengths = dataset.lengths()
         first_step = int(lengths[:stored[0]].sum())
@@ -415,6 +419,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--append", action="store_true",
                    help="add to the dataset at PATH (its configs must match the arena's) instead of creating one")
     p.add_argument("--overwrite", action="store_true", help="replace a dataset already at PATH")
+    p.add_argument("--devices", default=None, metavar="N|all",
+                   help="split the arenas over this many devices, or 'all' (default: 1); the trajectories are the "
+                        "same")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(fn=_cmd_collect)
     p = sub.add_parser("render", help="film an agent's episodes in an arena and write an MP4 or GIF video",

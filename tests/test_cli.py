@@ -128,7 +128,8 @@ def test_collect_help_names_every_option(capsys):
     with pytest.raises(SystemExit):
         main(["collect", "--help"])
     out = capsys.readouterr().out
-    for option in ["--out", "--trajectories", "--seed", "--config", "--set", "--batch", "--append", "--overwrite"]:
+    for option in ["--out", "--trajectories", "--seed", "--config", "--set", "--batch", "--append", "--overwrite",
+                   "--devices"]:
         assert option in out
     assert "jarena train bc" in out
 
@@ -169,3 +170,34 @@ def test_train_without_a_tuned_config_uses_the_agents_defaults(capsys, tmp_path)
     assert "trained 512 steps" in captured.out
     assert main(["train", "ppo", arena, "--config", "tuned", "--steps", "512"]) == 2  # a named config must exist
     assert "no config 'tuned'" in capsys.readouterr().err
+
+
+COLLECT_ON_TWO_DEVICES = """
+import sys
+import numpy as np
+from jarena.cli import main
+from jarena.data import TrajectoryDataset
+out = {}
+for devices in ("1", "2"):
+    path = sys.argv[1] + "/d" + devices
+    assert main(["collect", "random", "classic|domain:pendulum", "--out", path, "--trajectories", "3", "--batch", "4",
+                 "--devices", devices, "--no-progress"]) == 0
+    out[devices] = [(t["episode"], t["reward"]) for t in TrajectoryDataset(path)]
+assert [e for e, _ in out["1"]] == [e for e, _ in out["2"]], out
+for (_, a), (_, b) in zip(out["1"], out["2"]):
+    np.testing.assert_allclose(a, b, rtol=1e-5)
+print("SAME", len(out["2"]))
+"""
+
+
+def test_collect_splits_its_arenas_over_devices_and_stores_the_same_trajectories(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2 --xla_cpu_multi_thread_eigen=false",
+               JAX_PLATFORMS="cpu")
+    done = subprocess.run([sys.executable, "-c", COLLECT_ON_TWO_DEVICES, str(tmp_path)], env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0 and "SAME 3" in done.stdout, done.stdout[-2000:] + done.stderr[-2000:]
+    assert "on 2 cpu device(s)" in done.stdout
