@@ -79,6 +79,7 @@ def main(argv=None) -> int:
     p.add_argument("--tool", default="pixel_pick_and_place(1)", help="action tool (default pixel_pick_and_place(1))")
     p.add_argument("--config", default="{}", help="JSON config for the oracle (default {})")
     args = p.parse_args(argv)
+    oracle_config = json.loads(args.config)
     np.set_printoptions(precision=2, linewidth=160)
     print(f"{jax.devices()[0].device_kind}, jax {jax.__version__}, Python {platform.python_version()}")
     rows = []
@@ -90,14 +91,14 @@ def main(argv=None) -> int:
         metric = "normalised_fold_distance" if folding else "normalised_coverage"
         for name in args.agents.split(","):
             agent_name = ORACLES.get(task, "oracle_cloth_folding") if name == "oracle" else name
-            config = json.loads(args.config) if name == "oracle" else tuned_config(agent_name, arena)
+            config = dict(oracle_config) if name == "oracle" else tuned_config(agent_name, arena)
             if agent_name in list_agents("arena_model"):  # it simulates the arena it acts in
                 config["arena"] = arena.build_string
             agent = build_agent(agent_name, config)
             initial, values, success, seconds = run(arena, agent, args.actions, metric)
             best = values.min(0) if folding else values.max(0)
             print(f"{task} {agent_name}: initial {initial}\nfinal {values[-1]}\nbest {best}")
-            label = agent_name + (f" {args.config}" if name == "oracle" and json.loads(args.config) else "")
+            label = agent_name + (f" {args.config}" if name == "oracle" and oracle_config else "")
             row = {"task": task, "initial_state": initial_state, "agent": label, "episodes": len(initial),
                    "actions": args.actions, "initial": float(initial.mean()), "final": float(values[-1].mean()),
                    "best": float(best.mean()), "success": int(success.any(0).sum()), "seconds": seconds}

@@ -56,16 +56,16 @@ def _agent_config(args, arena) -> dict:
     import jarena
     import jarena_agents
 
-    planner = args.agent in jarena_agents.list_agents("arena_model")  # they plan in the arena's own dynamics
+    models_arena = args.agent in jarena_agents.list_agents("arena_model")  # it simulates the arena it acts in
     try:
         config = jarena.retrieve_config(args.agent, arena, args.config)
     except FileNotFoundError as e:
         if args.config != "default":  # a named config that is missing is an error
             raise
-        if not planner:
+        if not models_arena:
             print(f"note: {e}; using {args.agent}'s built-in defaults (and any --set)", file=sys.stderr)
         config = {}
-    if planner:
+    if models_arena:
         config["arena"] = args.arena
     checkpoint = getattr(args, "checkpoint", None)
     saved = Path(checkpoint or "", "config.json")

@@ -81,7 +81,8 @@ def pull(positions: jax.Array, handles: jax.Array, targets: jax.Array, eligible:
       since a pinch takes the top layer; pickers left without an eligible handle idle), and the largest
       eligible handle's distance to its target, metres.
     """
-    error = jnp.sqrt(dot(positions[handles, :2] - targets, positions[handles, :2] - targets))
+    offset = positions[handles, :2] - targets
+    error = jnp.sqrt(dot(offset, offset))
     ranked = jnp.where(covered(positions, handles, spacing), error * 0.25, error)
     ranked = jnp.where(eligible, ranked, -1.0)
     rank, worst = jax.lax.top_k(ranked, pickers)

@@ -18,8 +18,8 @@ spirit of Agent-Arena's ``oracle-towel``), for the ``cloth`` arenas' pick-and-pl
 
 The lookahead plans with the arena it acts in, as the planners do: config ``arena`` (the arena string; the
 ``jarena`` command sets it) or ``make_cloth_flattening_oracle(config, arena=...)``. It simulates 33 actions
-per action taken. On 64 crumpled 40 x 40 eval episodes the lookahead reaches normalised coverage 0.9
-within 10 actions on 95% of them, the analytic pull alone on a third (``benchmarks/RESULTS.md``).
+per action taken. On 128 crumpled 40 x 40 eval episodes the lookahead reaches normalised coverage 0.9
+within 10 actions on 95% of them, the analytic pull alone on 37% (``benchmarks/RESULTS.md``).
 
 Actions are in the frame of the arena's tool (pixels of the top-down camera or normalised world points),
 read from the tool's state; the default heights and camera of :mod:`jarena.arenas.cloth.tools` are assumed.
@@ -52,6 +52,11 @@ class ClothFlatteningOracleConfig:
     arena: str = ""  # the arena the lookahead simulates (its build string); the jarena command sets it
 
 
+def centre_xy(positions: jax.Array) -> jax.Array:
+    """float32 (2,): the mean particle x-y of ``positions`` (N, 3), summed in a fixed order (see :func:`flat_goal`)."""
+    return fixed_sum(positions[:, :2], axis=0) / positions.shape[0]
+
+
 def flat_goal(positions: jax.Array, mesh: ClothMesh, reach: float) -> jax.Array:
     """float32 (N, 2): the flat cloth best aligned with ``positions`` (N, 3) from above.
 
@@ -63,7 +68,7 @@ def flat_goal(positions: jax.Array, mesh: ClothMesh, reach: float) -> jax.Array:
     # the batch size): the oracle acts the same, to the bit, in any batch
     rest = jnp.asarray(mesh.rest_positions[:, :2])  # centred at the origin
     now = positions[:, :2]
-    centre = fixed_sum(now, axis=0) / now.shape[0]
+    centre = centre_xy(positions)
     best, best_cost = None, None
     for mirror in (jnp.array([1.0, 1.0]), jnp.array([1.0, -1.0])):
         source = rest * mirror
@@ -71,7 +76,8 @@ def flat_goal(positions: jax.Array, mesh: ClothMesh, reach: float) -> jax.Array:
         angle = jnp.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
         c, s = jnp.cos(angle), jnp.sin(angle)
         goal = jnp.stack([source[:, 0] * c - source[:, 1] * s, source[:, 0] * s + source[:, 1] * c], -1)
-        cost = fixed_sum(dot(goal + centre - now, goal + centre - now), axis=0)
+        residual = goal + centre - now
+        cost = fixed_sum(dot(residual, residual), axis=0)
         if best is None:
             best, best_cost = goal, cost
         else:
@@ -98,7 +104,7 @@ def proposals(positions: jax.Array, goal: jax.Array, mesh: ClothMesh, pickers: i
     """
     handles = jnp.asarray(cloth_actions.edge_handles(mesh))
     pick = positions[handles, :2]
-    away = pick - fixed_sum(positions[:, :2], axis=0) / positions.shape[0]
+    away = pick - centre_xy(positions)
     away = away / (jnp.sqrt(dot(away, away))[:, None] + 1e-6)
     places = jnp.concatenate([goal[handles], pick + outward * away])
     spare = jnp.tile(cloth_actions.idle(pickers - 1), (places.shape[0], 1))
@@ -146,10 +152,10 @@ def make_cloth_flattening_oracle(config=None, arena=None) -> Agent:
 
     def act(state, info, key, privileged):
         coordinates = cloth_actions.frame_of(privileged, "oracle_cloth_flattening")
-        if model is not None:
-            model.check_state(privileged, batch_dims=1)
         pickers = state.spec.action.shape[-1] // 4
         batch = privileged.physics.positions.shape[:-2]
+        if model is not None:
+            model.check_state(privileged, batch_dims=len(batch))
         flat = jax.tree_util.tree_map(lambda x: x.reshape((-1,) + x.shape[len(batch):]), privileged)
         actions = jax.vmap(lambda p: one(p, pickers, coordinates))(flat)
         return actions.reshape(batch + actions.shape[-1:]), state
