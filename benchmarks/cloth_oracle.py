@@ -9,6 +9,7 @@ batch, one compiled scan over the actions, and prints one table row.
     python benchmarks/cloth_oracle.py --tasks flattening --agents oracle,random --episodes 64 --actions 10
     python benchmarks/cloth_oracle.py --agents oracle --config '{"lookahead": false}'   # the analytic pull alone
     python benchmarks/cloth_oracle.py --tasks side_fold,diagonal_fold,one_corner_inward --initial flat --actions 4
+    python benchmarks/cloth_oracle.py --agents bc --checkpoint runs/bc --extra resolution:64,depth:false,mask:false
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import argparse
 import json
 import platform
 import time
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -25,15 +27,17 @@ import numpy as np
 import jarena
 from jarena.arenas.cloth import tiers as tiers_lib
 from jarena.runners.loop import act_and_step
+from jarena.training import restore_policy
 from jarena_agents import build_agent, list_agents
 
 ORACLES = {"flattening": "oracle_cloth_flattening"}
 """Task -> its oracle (every fold: ``oracle_cloth_folding``)."""
 
 
-def arena_string(task: str, initial: str, particles: int, actions: int, episodes: int, tool: str) -> str:
+def arena_string(task: str, initial: str, particles: int, actions: int, episodes: int, tool: str,
+                 extra: str = "") -> str:
     return (f"cloth|domain:square_fabric,initial:{initial},particles:{particles},task:{task},action:{tool},"
-            f"horizon:{actions},eval_episodes:{episodes}")
+            f"horizon:{actions},eval_episodes:{episodes}" + (f",{extra}" if extra else ""))
 
 
 def tuned_config(agent: str, arena) -> dict:
@@ -44,14 +48,18 @@ def tuned_config(agent: str, arena) -> dict:
         return {}
 
 
-def run(arena, agent, actions: int, metric: str):
-    """(initial, per-action metric (A, E), per-action success (A, E), seconds) over the arena's eval episodes."""
+def run(arena, agent, actions: int, metric: str, agent_state=None):
+    """(initial, per-action metric (A, E), per-action success (A, E), seconds) over the arena's eval episodes;
+    ``agent_state``: a trained policy's acting state (default: the agent's ``init``)."""
     ids = jnp.asarray(list(arena.episodes("eval")))
+    if agent_state is not None:
+        agent_state = agent.batch_state(agent_state, ids.shape[0])
 
     @jax.jit
-    def go(ids):
+    def go(ids, agent_state):
         state, info = jax.vmap(lambda e: arena.reset(episode=e))(ids)
-        agent_state = agent.init(jax.random.key(0), arena.spec, ids.shape[0])
+        if agent_state is None:
+            agent_state = agent.init(jax.random.key(0), arena.spec, ids.shape[0])
         params = arena.default_params()
 
         def body(carry, key):
@@ -63,7 +71,7 @@ def run(arena, agent, actions: int, metric: str):
         return info.metrics[metric], values, success
 
     start = time.perf_counter()
-    initial, values, success = jax.block_until_ready(go(ids))
+    initial, values, success = jax.block_until_ready(go(ids, agent_state))
     return np.asarray(initial), np.asarray(values), np.asarray(success), time.perf_counter() - start
 
 
@@ -78,6 +86,10 @@ def main(argv=None) -> int:
     p.add_argument("--actions", type=int, default=10, help="pick-and-place actions per episode (default 10)")
     p.add_argument("--tool", default="pixel_pick_and_place(1)", help="action tool (default pixel_pick_and_place(1))")
     p.add_argument("--config", default="{}", help="JSON config for the oracle (default {})")
+    p.add_argument("--checkpoint", default=None, metavar="RUN_DIR",
+                   help="a `jarena train` run directory: the trainable agent in --agents acts with the run's config "
+                        "and its best validated policy (e.g. bc cloned from the oracle)")
+    p.add_argument("--extra", default="", help="more arena keys, e.g. resolution:64,depth:false,mask:false")
     args = p.parse_args(argv)
     oracle_config = json.loads(args.config)
     np.set_printoptions(precision=2, linewidth=160)
@@ -87,15 +99,19 @@ def main(argv=None) -> int:
         folding = task != "flattening"
         initial_state = args.initial or ("flat" if folding else "crumpled")
         arena = jarena.build_arena(arena_string(task, initial_state, args.particles, args.actions, args.episodes,
-                                                args.tool))
+                                                args.tool, args.extra))
         metric = "normalised_fold_distance" if folding else "normalised_coverage"
         for name in args.agents.split(","):
             agent_name = ORACLES.get(task, "oracle_cloth_folding") if name == "oracle" else name
             config = dict(oracle_config) if name == "oracle" else tuned_config(agent_name, arena)
             if agent_name in list_agents("arena_model"):  # it simulates the arena it acts in
                 config["arena"] = arena.build_string
+            trained = args.checkpoint and agent_name in list_agents("trainable")
+            if trained:
+                config = json.loads(Path(args.checkpoint, "config.json").read_text())["config"]
             agent = build_agent(agent_name, config)
-            initial, values, success, seconds = run(arena, agent, args.actions, metric)
+            policy = restore_policy(agent, arena, args.checkpoint) if trained else None
+            initial, values, success, seconds = run(arena, agent, args.actions, metric, policy)
             best = values.min(0) if folding else values.max(0)
             print(f"{task} {agent_name}: initial {initial}\nfinal {values[-1]}\nbest {best}")
             label = agent_name + (f" {args.config}" if name == "oracle" and oracle_config else "")

@@ -452,3 +452,52 @@ class _progress:
     def close(self) -> None:
         if self.bar is not None:
             self.bar.close()
+def trained_arena(run_dir: Path, arena: Arena) -> Arena:
+    """The arena a run trained on (its ``config.json``), whose batch state the checkpoint holds; ``arena``
+    when it is the same or unknown. A policy trained on one arena may act in another with the same
+    observation and action specs (e.g. trained with fast solver options, evaluated on the suite's)."""
+    from jarena.building import build_arena
+
+    saved = Path(run_dir) / "config.json"
+    built_from = json.loads(saved.read_text()).get("arena") if saved.is_file() else None
+    if not built_from or built_from in (arena.build_string, arena.name):
+        return arena
+    trained_on = build_arena(built_from)
+    if trained_on.spec != arena.spec:
+        raise ValueError(f"the run in {run_dir} trained on {built_from!r}, whose observation and action specs "
+                         f"differ from {arena.build_string or arena.name!r}'s:\n  {trained_on.spec}\n  {arena.spec}")
+    return trained_on
+
+
+def restore_policy(agent, arena: Arena, run_dir: str | os.PathLike, select: str = "best"):
+    """The deterministic policy of a training run directory: the policy ``train_and_evaluate`` selected
+    (``best``: the best validated one, kept in ``best_policy/``) or the latest checkpoint's (``last``, and
+    for runs without a kept policy); a path to a checkpoints folder itself is taken as ``last``."""
+    selection(select)
+    if getattr(agent, "init_training", None) is None:
+        raise ValueError(f"agent {agent.name!r} is not trainable and has no checkpoints")
+    path = Path(run_dir)
+    folder = path / "checkpoints" if (path / "checkpoints").is_dir() else path
+    if select == "best" and (path / BEST_POLICY_DIR).is_dir():
+        folder = path / BEST_POLICY_DIR
+    checkpointer = Checkpointer(folder)
+    if checkpointer.latest_step() is None:
+        raise FileNotFoundError(f"no checkpoint found in {folder}")
+    trained_on = trained_arena(path, arena)
+    template = jax.jit(agent.init_training, static_argnums=1)(jax.random.key(0), trained_on)
+    kept = folder.name == BEST_POLICY_DIR
+    if kept:
+        template = agent.policy(template, trained_on.spec, True)
+    try:
+        state, meta = checkpointer.restore(template)
+    except Exception as e:  # orbax raises several types for a mismatched or damaged checkpoint
+        raise ValueError(f"checkpoint in {folder} does not fit agent {agent.name!r} with config {agent.config} "
+                         f"on {arena.name!r}: {e}") from e
+    checkpointer.close()
+    if kept:
+        row = meta["validation"]
+        print(f"restored the best validated policy (step {int(row['env_steps'])}, validation return "
+              f"{row['return_mean']:.1f}) from {folder}")
+        return state  # made for the trained-on arena's spec, which equals arena's (checked above)
+    print(f"restored checkpoint {checkpointer.latest_step()} from {folder}")
+    return agent.policy(state, arena.spec, True)

@@ -104,6 +104,24 @@ class MLP(nn.Module):
         return nn.Dense(self.features, kernel_init=nn.initializers.orthogonal(self.output_scale))(x)
 
 
+class EncodedMLP(nn.Module):
+    """An :class:`MLP` over a float (*, D) vector or :func:`split_observation`'s dict, whose images go through a
+    :class:`PixelEncoder` (``cnn`` layers, ``cnn_padding``) and join the vector first. Returns (*, features)."""
+
+    hidden: Sequence[int]
+    features: int
+    cnn: Sequence[tuple[int, int, int]] = PixelEncoder.layers
+    cnn_padding: str = PixelEncoder.padding
+    activation: str = "tanh"
+
+    @nn.compact
+    def __call__(self, x):
+        if isinstance(x, dict):
+            features = PixelEncoder(tuple(self.cnn), self.cnn_padding, name="encoder")(x["images"])
+            x = jnp.concatenate([x["vector"], features], axis=-1)
+        return MLP(self.hidden, self.features, activation=self.activation, name="mlp")(x)
+
+
 @flax.struct.dataclass
 class Gaussian:
     """A diagonal Gaussian over raw actions (*, d) in normalised units; the arena gets them clipped to

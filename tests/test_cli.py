@@ -148,18 +148,18 @@ def test_checkpoints_restore_on_the_arena_they_trained_on(tmp_path):
     import json
 
     import jarena
-    from jarena.cli import _trained_arena
+    from jarena.training import trained_arena
 
     evaluated = jarena.build_arena("classic|domain:cartpole")
     shorter = "classic|domain:cartpole,time_limit:50"
     (tmp_path / "config.json").write_text(json.dumps({"agent": "ppo", "arena": shorter}))
-    trained_on = _trained_arena(tmp_path, evaluated)
+    trained_on = trained_arena(tmp_path, evaluated)
     assert trained_on.build_string == "classic|domain:cartpole,time_limit:50" and trained_on is not evaluated
     (tmp_path / "config.json").write_text(json.dumps({"agent": "ppo", "arena": "classic|domain:cartpole"}))
-    assert _trained_arena(tmp_path, evaluated) is evaluated
+    assert trained_arena(tmp_path, evaluated) is evaluated
     (tmp_path / "config.json").write_text(json.dumps({"agent": "ppo", "arena": "classic|domain:pendulum"}))
     with pytest.raises(ValueError, match="observation and action specs differ"):
-        _trained_arena(tmp_path, evaluated)
+        trained_arena(tmp_path, evaluated)
 
 
 def test_train_without_a_tuned_config_uses_the_agents_defaults(capsys, tmp_path):

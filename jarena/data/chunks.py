@@ -35,7 +35,8 @@ def _raw_directory(array: zarr.Array) -> str | None:
     if len(codecs) != 1 or not isinstance(codecs[0], BytesCodec) or not isinstance(array.store_path.store, LocalStore):
         return None
     endian = codecs[0].endian
-    if array.dtype.itemsize > 1 and (endian is None or endian.value != sys.byteorder):
+    endian = getattr(endian, "value", endian)  # an Endian enum in zarr 3.1, a string in 3.4
+    if array.dtype.itemsize > 1 and endian != sys.byteorder:
         return None
     return os.path.join(str(array.store_path.store.root), array.store_path.path)
 

@@ -34,6 +34,10 @@ from jarena.runners.parallel import perform_parallel
 Observe = Callable[[dict[str, jax.Array]], dict[str, jax.Array]]
 
 
+DEFAULT_CHUNK_STEPS = 100
+"""Agent steps per compiled chunk of :func:`collect`, unless fewer finish every episode it needs."""
+
+
 def configs_for(arena: Arena, observe: Observe | None = None, compression: str | None = None) -> dict[str, dict]:
     """Dataset configs (``obs_config``, ``act_config``, ``goal_config``) for ``arena``'s trajectories.
 
@@ -127,7 +131,7 @@ class _Episodes:
 
 
 def collect(agent: Agent, arena: Arena, dataset: TrajectoryDataset | None, n_trajectories: int, *, key: jax.Array,
-            num_arenas: int | None = None, params: ArenaParams | None = None, chunk_steps: int = 100,
+            num_arenas: int | None = None, params: ArenaParams | None = None, chunk_steps: int | None = None,
             observe: Observe | None = None, progress: bool = True, devices: int | str | None = None) -> list[int]:
     """Runs ``agent`` on a batch of ``arena`` and appends ``n_trajectories`` finished episodes to ``dataset``.
 
@@ -140,7 +144,10 @@ def collect(agent: Agent, arena: Arena, dataset: TrajectoryDataset | None, n_tra
       key: PRNG key; the stored trajectories are a pure function of it (and the arguments).
       num_arenas: arenas run in parallel (default ``min(n_trajectories, 64)``).
       params: arena params (shared by all arenas).
-      chunk_steps: agent steps per compiled chunk; host work happens between chunks.
+      chunk_steps: agent steps per compiled chunk; host work happens between chunks. Default: 100, or fewer
+        when fewer steps finish every episode needed (each arena's share of ``n_trajectories`` times the
+        arena's ``max_episode_steps``), so expensive agents (a cloth oracle that simulates its proposals)
+        run no step that cannot be stored.
       observe: a traceable transform of each observation dict before storing (e.g. :func:`resize_images`).
       progress: show a progress bar.
       devices: the arenas are split over these devices (:func:`jarena.perform_parallel`'s ``devices``; by
@@ -152,13 +159,15 @@ def collect(agent: Agent, arena: Arena, dataset: TrajectoryDataset | None, n_tra
     if arena.max_episode_steps is None:
         raise ValueError(f"arena {arena.name!r} has no time limit, so its episodes may never end; "
                          f"add one with jarena.tasks.time_limit before collecting")
+    num_arenas = int(num_arenas or min(n_trajectories, 64))
+    if chunk_steps is None:
+        chunk_steps = min(DEFAULT_CHUNK_STEPS, -(-n_trajectories // num_arenas) * int(arena.max_episode_steps))
     if n_trajectories < 1 or chunk_steps < 1:
         raise ValueError(f"n_trajectories and chunk_steps must be positive, got {n_trajectories}, {chunk_steps}")
     main = distributed.is_main_process()
     if (dataset is None) == main:
         raise ValueError("collect: pass the dataset in process 0 (the process that writes) and None in the others, "
                          f"got {'None' if dataset is None else 'a dataset'} in process {jax.process_index()}")
-    num_arenas = int(num_arenas or min(n_trajectories, 64))
     params = arena.default_params() if params is None else params
     key_reset, key_agent, key_run = jax.random.split(key, 3)
     state, info = jax.jit(lambda k, p: batch_reset(arena, k, num_arenas, p))(key_reset, params)

@@ -16,6 +16,10 @@ Policies (config ``policy``):
     deviation trained by negative log-likelihood, weighted as beta-NLL (``nll_beta``: with the plain NLL,
     0, the mean stops learning wherever the std grows, and a cloned pendulum swing-up fails); eval acts
     with the mean, train mode samples.
+  ``mixture``: for Box actions, a mixture of ``components`` diagonal Gaussians (a mixture density network,
+    as robomimic's GMM policy) trained by negative log-likelihood; eval acts with the mean of the most
+    probable component. For demonstrations with several distinct good actions (which cloth corner to
+    pull), where the regression and the single Gaussian learn their useless average.
 
 Action chunks (config ``chunk = K``): the network predicts the K actions that follow an observation in
 the demonstration (K-step windows of one trajectory, drawn uniformly with
@@ -26,7 +30,14 @@ hold per-arena buffers.
 
 Observations are flattened as :func:`jarena_agents.networks.flatten_observation` does (fields sorted by
 name, then the goal) and, with ``normalize_observations``, standardised with the dataset's mean and
-variance (over every stored observation).
+variance (over every stored observation). Image observations (uint8 (H, W, C),
+:func:`jarena_agents.networks.image_keys`) instead go through a CNN (``cnn`` layers of
+:class:`jarena_agents.networks.PixelEncoder`) whose features join the other, flattened fields before the MLP,
+as PPO's pixel networks do. Images are not shifted (DrQ's augmentation), since a shifted image would need a
+shifted action; with ``augment: rotate90`` each sample is turned by a random number of quarter turns, its
+actions read as normalised image points ``(u, v)`` turned with it (:func:`jarena_agents.augment.random_rotate90`):
+for top-down views of scenes with no preferred direction and pixel-point actions, such as the cloth arenas'
+``pixel_pick_and_place``, it gives four times the demonstrations.
 
 The dataset lives in the train state (as a replay buffer would: checkpoints carry it, and a resumed run
 continues bit for bit even if the file changed since). ``init_training`` reads it on the host when it is
@@ -55,7 +66,7 @@ from jarena.data.collect import configs_for
 from jarena.data.dataset import TrajectoryDataset
 from jarena.data.loader import draw_indices
 from jarena.data.schema import DatasetError
-from jarena_agents import networks, normalizer
+from jarena_agents import augment, networks, normalizer
 from jarena_agents.bc import losses
 from jarena_agents.config import ConfigError, at_least, in_unit_interval, make_config, non_negative, positive
 from jarena_agents.registry import register_agent
@@ -82,6 +93,12 @@ class BCConfig:
       normalize_observations: standardise observations with the dataset's statistics.
       nll_beta: the ``gaussian`` policy's beta-NLL weight (:func:`jarena_agents.bc.losses.gaussian_nll`; 0 is
         the plain negative log-likelihood, 0.5 keeps the mean learning where the std grows).
+      components: M, the ``mixture`` policy's Gaussians.
+      augment: ``"none"`` or ``"rotate90"`` (see the module docstring; image observations only, and actions
+        in [-1, 1] that are image points).
+      cnn: ``(features, kernel, stride)`` of the image encoder's ReLU convolutions (arenas with image
+        observations only; default: the Nature DQN's).
+      cnn_padding: the convolutions' padding, ``"VALID"`` or ``"SAME"``.
     """
 
     dataset: str = ""
@@ -95,6 +112,10 @@ class BCConfig:
     total_steps: int = at_least(1, default=10_000)
     normalize_observations: bool = True
     nll_beta: float = in_unit_interval(0.5)
+    components: int = at_least(1, default=5)
+    augment: str = "none"
+    cnn: tuple = networks.PixelEncoder.layers
+    cnn_padding: str = networks.PixelEncoder.padding
 
     @property
     def steps_per_update(self) -> int:
@@ -117,14 +138,14 @@ class Head:
     """How the network's output (F values per predicted step) becomes a loss and an action.
 
     Attributes:
-      features: ``spec -> F``.
+      features: ``(spec, config) -> F``.
       loss: ``(spec, config, outputs (..., K, F), actions (..., K, *spec.shape)) -> float32 scalar``.
-      act: ``(spec, outputs (..., F), key, deterministic) -> action (..., *spec.shape)`` in the spec.
+      act: ``(spec, config, outputs (..., F), key, deterministic) -> action (..., *spec.shape)`` in the spec.
     """
 
-    features: Callable[[Spec], int]
+    features: Callable[[Spec, Any], int]
     loss: Callable[[Spec, Any, jax.Array, jax.Array], jax.Array]
-    act: Callable[[Spec, jax.Array, jax.Array, bool], jax.Array]
+    act: Callable[[Spec, Any, jax.Array, jax.Array, bool], jax.Array]
 
 
 def _size(spec: Box) -> int:
@@ -144,33 +165,79 @@ def _split_gaussian(outputs: jax.Array) -> tuple[jax.Array, jax.Array]:
     return mean, low + 0.5 * (high - low) * (jnp.tanh(raw) + 1.0)  # a soft clip: gradients never vanish
 
 
-def _gaussian_act(spec, outputs, key, deterministic):
+def _gaussian_act(spec, cfg, outputs, key, deterministic):
     mean, log_std = _split_gaussian(outputs)
     raw = mean if deterministic else mean + jnp.exp(log_std) * jax.random.normal(key, mean.shape)
     return networks.to_env_action(spec, raw)
 
 
-def _categorical_act(spec, logits, key, deterministic):
+def _split_mixture(outputs: jax.Array, components: int) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Outputs (..., M (1 + 2 d)) -> mixture logits (..., M), means and log stds (..., M, d)."""
+    logits, rest = outputs[..., :components], outputs[..., components:]
+    mean, log_std = _split_gaussian(rest.reshape(rest.shape[:-1] + (components, -1)))
+    return logits, mean, log_std
+
+
+def _mixture_loss(spec, cfg, outputs, actions):
+    return losses.mixture_nll(*_split_mixture(outputs, cfg.components), to_unit(spec, actions))
+
+
+def _mixture_act(spec, cfg, outputs, key, deterministic):
+    """Eval: the mean of the most probable component; train mode samples a component, then its Gaussian."""
+    logits, mean, log_std = _split_mixture(outputs, cfg.components)
+    component_key, noise_key = jax.random.split(key)
+    pick = jnp.argmax(logits, -1) if deterministic else jax.random.categorical(component_key, logits)
+    mean = jnp.take_along_axis(mean, pick[..., None, None], axis=-2)[..., 0, :]
+    log_std = jnp.take_along_axis(log_std, pick[..., None, None], axis=-2)[..., 0, :]
+    raw = mean if deterministic else mean + jnp.exp(log_std) * jax.random.normal(noise_key, mean.shape)
+    return networks.to_env_action(spec, raw)
+
+
+def _categorical_act(spec, cfg, logits, key, deterministic):
     action = jnp.argmax(logits, -1) if deterministic else jax.random.categorical(key, logits)
     return action.astype(spec.dtype)
 
 
 HEADS: dict[tuple[str, type], Head] = {
     ("deterministic", Box): Head(
-        features=_size,
+        features=lambda spec, cfg: _size(spec),
         loss=lambda spec, cfg, out, actions: losses.mse(out, to_unit(spec, actions)),
-        act=lambda spec, out, key, deterministic: networks.to_env_action(spec, out)),
+        act=lambda spec, cfg, out, key, deterministic: networks.to_env_action(spec, out)),
     ("gaussian", Box): Head(
-        features=lambda spec: 2 * _size(spec),
+        features=lambda spec, cfg: 2 * _size(spec),
         loss=lambda spec, cfg, out, actions: losses.gaussian_nll(*_split_gaussian(out), to_unit(spec, actions),
                                                                 cfg.nll_beta),
         act=_gaussian_act),
+    ("mixture", Box): Head(
+        features=lambda spec, cfg: cfg.components * (1 + 2 * _size(spec)),
+        loss=_mixture_loss,
+        act=_mixture_act),
     ("deterministic", Discrete): Head(
-        features=lambda spec: spec.n,
+        features=lambda spec, cfg: spec.n,
         loss=lambda spec, cfg, out, actions: losses.cross_entropy(out, actions),
         act=_categorical_act),
 }
 POLICIES = tuple(sorted({policy for policy, _ in HEADS}))
+AUGMENTATIONS = ("none", "rotate90")
+
+
+def check_rotate90(spec: ArenaSpec) -> None:
+    """Raises a ``ConfigError`` unless ``augment: rotate90`` can turn this arena's samples: square image
+    observations and nothing else, and Box actions in [-1, 1] with an even number of values (image points)."""
+    images = networks.image_keys(spec)
+    action = spec.action
+    problems = []
+    if not images:
+        problems.append("the arena has no image observations")
+    elif any(spec.observation[k].shape[0] != spec.observation[k].shape[1] for k in images):
+        problems.append("its images are not square")
+    if networks.vector_size(spec, images):
+        problems.append("it observes more than images (a vector would not turn with them)")
+    if not (isinstance(action, Box) and action.shape and action.shape[-1] % 2 == 0
+            and np.all(np.asarray(action.low) == -1.0) and np.all(np.asarray(action.high) == 1.0)):
+        problems.append(f"its actions {action!r} are not image points (an even number of values in [-1, 1])")
+    if problems:
+        raise ConfigError("bc: augment 'rotate90' does not fit this arena: " + "; ".join(problems))
 
 
 def head_for(policy: str, spec: Spec) -> Head:
@@ -213,13 +280,18 @@ class BCTrainState:
     update: jax.Array  # int32, updates done
 
 
-def flatten(observation: dict, goal: dict) -> jax.Array:
+def flatten(observation: dict, goal: dict, images: tuple[str, ...] = ()):
     """Observation fields (sorted by name) then goal fields, each flattened after axis 0: float32 (S, D).
 
-    The same vector as :func:`jarena_agents.networks.flatten_observation` gives for an ``Info``.
+    The same vector as :func:`jarena_agents.networks.flatten_observation` gives for an ``Info``. With image
+    keys ``images``, :func:`jarena_agents.networks.split_observation`'s dict: those fields apart, the rest flat.
     """
-    leaves = jax.tree_util.tree_leaves(observation) + jax.tree_util.tree_leaves(goal)
-    return jnp.concatenate([x.reshape(x.shape[:1] + (-1,)).astype(jnp.float32) for x in leaves], axis=-1)
+    rest = {k: v for k, v in observation.items() if k not in images}
+    leaves = jax.tree_util.tree_leaves(rest) + jax.tree_util.tree_leaves(goal)
+    size = observation[next(iter(observation))].shape[0] if observation else 0
+    vector = jnp.concatenate([jnp.zeros((size, 0), jnp.float32)]
+                             + [x.reshape(x.shape[:1] + (-1,)).astype(jnp.float32) for x in leaves], axis=-1)
+    return {"vector": vector, "images": {k: observation[k] for k in images}} if images else vector
 
 
 # ---------------------------------------------------------------------------------------------- the dataset
@@ -262,8 +334,10 @@ def read_dataset(path: str, arena: Arena, chunk: int) -> dict[str, Any]:
         observation, goal = rows("observation", steps + n), rows("goal", n)
         (action,) = rows("action", steps).values()
     row_goal = {k: np.repeat(v, lengths + 1, axis=0) for k, v in goal.items()}
-    flat = np.concatenate([x.reshape(x.shape[0], -1).astype(np.float64)
-                           for x in jax.tree_util.tree_leaves(observation) + jax.tree_util.tree_leaves(row_goal)], -1)
+    images = networks.image_keys(arena.spec)  # not standardised: the CNN scales them
+    vector = {k: v for k, v in observation.items() if k not in images}
+    flat = np.concatenate([np.zeros((steps + n, 0))] + [x.reshape(x.shape[0], -1).astype(np.float64)
+                           for x in jax.tree_util.tree_leaves(vector) + jax.tree_util.tree_leaves(row_goal)], -1)
     return dict(data=dict(observation=observation, action=action, goal=goal), lengths=lengths.astype(np.int32),
                 mean=flat.mean(0).astype(np.float32), var=np.maximum(flat.var(0), MIN_VARIANCE).astype(np.float32))
 
@@ -294,15 +368,31 @@ def make_bc(config=None) -> TrainableAgent:
     cfg = make_config(BCConfig, config, agent="bc")
     if cfg.policy not in POLICIES:
         raise ConfigError(f"bc: unknown policy {cfg.policy!r}; valid policies: {list(POLICIES)}")
+    if cfg.augment not in AUGMENTATIONS:
+        raise ConfigError(f"bc: unknown augment {cfg.augment!r}; choose from {list(AUGMENTATIONS)}")
+    if cfg.cnn_padding not in networks.PADDINGS:
+        raise ConfigError(f"bc: unknown cnn_padding {cfg.cnn_padding!r}; choose from {list(networks.PADDINGS)}")
 
     def network(spec: ArenaSpec):
         head = head_for(cfg.policy, spec.action)
-        return head, networks.MLP(tuple(cfg.hidden), cfg.chunk * head.features(spec.action))
+        features = cfg.chunk * head.features(spec.action, cfg)
+        if networks.image_keys(spec):
+            return head, networks.EncodedMLP(tuple(cfg.hidden), features, tuple(tuple(c) for c in cfg.cnn),
+                                             cfg.cnn_padding)
+        return head, networks.MLP(tuple(cfg.hidden), features)
+
+    def observe(spec: ArenaSpec, info: Info):
+        """The network's input: the flat observation vector, or with image keys the vector and the images."""
+        images = networks.image_keys(spec)
+        return networks.split_observation(info, images) if images else networks.flatten_observation(info)
 
     def forward(spec: ArenaSpec, params, stats, observation):
-        """Outputs (..., K, F) for flattened observations (..., D)."""
+        """Outputs (..., K, F) for flattened observations (..., D), or ``split_observation``'s dict of them."""
         if cfg.normalize_observations:
-            observation = normalizer.normalize(stats, observation)
+            if isinstance(observation, dict):
+                observation = dict(observation, vector=normalizer.normalize(stats, observation["vector"]))
+            else:
+                observation = normalizer.normalize(stats, observation)
         _, mlp = network(spec)
         out = mlp.apply(params, observation)
         return out.reshape(out.shape[:-1] + (cfg.chunk, -1))
@@ -313,17 +403,22 @@ def make_bc(config=None) -> TrainableAgent:
         return optax.chain(clip, optax.adam(lr))
 
     def init(key, spec: ArenaSpec, num_arenas: int) -> BCState:
-        dim = networks.observation_size(spec)
+        images = networks.image_keys(spec)
+        dim = networks.vector_size(spec, images)
+        example = jnp.zeros((1, dim), jnp.float32)
+        if images:
+            example = {"vector": example, "images": {k: spec.observation[k].zeros()[None] for k in images}}
         _, mlp = network(spec)
-        return BCState(params=mlp.init(key, jnp.zeros((1, dim), jnp.float32)), observation_stats=normalizer.init(dim),
-                       spec=spec)
+        return BCState(params=mlp.init(key, example), observation_stats=normalizer.init(dim), spec=spec)
 
     def act(state: BCState, info: Info, key, privileged=None):
-        out = forward(state.spec, state.params, state.observation_stats, networks.flatten_observation(info))
+        out = forward(state.spec, state.params, state.observation_stats, observe(state.spec, info))
         head, _ = network(state.spec)
-        return head.act(state.spec.action, out[..., 0, :], key, state.deterministic), state
+        return head.act(state.spec.action, cfg, out[..., 0, :], key, state.deterministic), state
 
     def init_training(key, arena: Arena) -> BCTrainState:
+        if cfg.augment == "rotate90":
+            check_rotate90(arena.spec)
         host = read_dataset(cfg.dataset, arena, cfg.chunk)
         device = _to_device(host)
         key, init_key = jax.random.split(key)
@@ -343,7 +438,13 @@ def make_bc(config=None) -> TrainableAgent:
         head, _ = network(spec)
         key, sample_key = jax.random.split(ts.key)
         observation, goal, actions = sample(ts.data, ts.lengths, sample_key, cfg.batch_size, cfg.chunk)
-        inputs = flatten(observation, goal)
+        if cfg.augment == "rotate90":
+            key, turn_key = jax.random.split(key)
+            images = networks.image_keys(spec)
+            turned, points = augment.random_rotate90(turn_key, {k: observation[k] for k in images},
+                                                     actions.reshape(actions.shape[:2] + (-1, 2)))
+            observation, actions = dict(observation, **turned), points.reshape(actions.shape).astype(actions.dtype)
+        inputs = flatten(observation, goal, networks.image_keys(spec))
 
         def loss_fn(params):
             return head.loss(spec.action, cfg, forward(spec, params, ts.observation_stats, inputs), actions)

@@ -32,3 +32,17 @@ def cross_entropy(logits: jax.Array, target: jax.Array) -> jax.Array:
     """``mean(-log softmax(logits)[target])``; logits (..., n), target int (...)."""
     logp = jax.nn.log_softmax(logits, axis=-1)
     return -jnp.mean(jnp.take_along_axis(logp, target[..., None].astype(jnp.int32), axis=-1)[..., 0])
+
+
+def mixture_nll(logits: jax.Array, means: jax.Array, log_stds: jax.Array, target: jax.Array) -> jax.Array:
+    """Negative log-likelihood of ``target`` (..., d) under a mixture of M diagonal Gaussians (a mixture
+    density network's output, Bishop 1994; robomimic's GMM policy): mixture ``logits`` (..., M), component
+    ``means`` and ``log_stds`` (..., M, d).
+
+    ``mean(-log sum_m softmax(logits)_m N(target; means_m, exp(log_stds_m)))``, by log-sum-exp. Unlike one
+    Gaussian or the squared error, it can put its mass on several distinct actions (pull this corner or that
+    one) instead of on their average.
+    """
+    z = (target[..., None, :] - means) * jnp.exp(-log_stds)
+    component = -jnp.sum(0.5 * jnp.square(z) + log_stds + 0.5 * jnp.log(2.0 * jnp.pi), axis=-1)  # (..., M)
+    return -jnp.mean(jax.nn.logsumexp(jax.nn.log_softmax(logits, axis=-1) + component, axis=-1))

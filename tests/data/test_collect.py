@@ -103,3 +103,22 @@ def test_the_example_collects_and_resumes(tmp_path, capsys):
     example.main(args)
     example.main(args)
     assert "trajectories=4, steps=2000" in capsys.readouterr().out  # the oracle balances all 500 steps
+
+
+def test_the_default_chunk_runs_no_step_that_cannot_be_stored(tmp_path, monkeypatch):
+    """Expensive agents (a cloth oracle simulating its proposals) pay only for the episodes asked for: 5
+    episodes of 7 steps on 3 arenas take chunks of 14 steps (2 episodes each), not 100."""
+    import sys
+
+    collect_module = sys.modules["jarena.data.collect"]  # the attribute jarena.data.collect is the function
+    arena = jarena.build_arena("classic|domain:pendulum,task:swingup,time_limit:7")
+    calls = []
+    real = collect_module.perform_parallel
+    monkeypatch.setattr(collect_module, "perform_parallel",
+                        lambda agent, arena, key, num, steps, **kw: calls.append(steps) or real(agent, arena, key, num,
+                                                                                                steps, **kw))
+    with TrajectoryDataset(tmp_path / "d", "w", **configs_for(arena)) as ds:
+        jarena.collect(jarena_agents.build_agent("random"), arena, ds, 5, key=jax.random.key(0), num_arenas=3,
+                       progress=False)
+        assert ds.num_trajectories() == 5
+    assert calls == [14]

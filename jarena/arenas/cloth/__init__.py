@@ -15,8 +15,9 @@ Builder ``cloth``::
 - ``horizon``: actions per episode (SoftGym's defaults: 30 for flattening, 15 for a fold from a flat start,
   45 from a crumpled one).
 - observations (:mod:`.camera`): ``rgb`` uint8 (R, R, 3), ``depth`` float32 (R, R) metres and ``mask``
-  uint8 (R, R) from the top-down camera, ``resolution`` R (default 128). Oracles read the particles from
-  ``arena.privileged(state).physics.positions``.
+  uint8 (R, R) from the top-down camera, ``resolution`` R (default 128); ``depth:false`` and ``mask:false``
+  drop those two (a pixel policy that reads only ``rgb``, and smaller datasets). Oracles read the particles
+  from ``arena.privileged(state).physics.positions``.
 """
 
 from __future__ import annotations
@@ -83,18 +84,23 @@ def _size(domain: str, size: Any) -> tuple[float, float]:
     return float(values[0]), float(values[1])
 
 
-def camera_sensor(mesh: ClothMesh, resolution: int) -> Sensor:
-    """The top-down camera: ``rgb``, ``depth`` and ``mask`` of ``resolution`` x ``resolution`` pixels."""
+def camera_sensor(mesh: ClothMesh, resolution: int, depth: bool = True, mask: bool = True) -> Sensor:
+    """The top-down camera: ``rgb``, and unless switched off ``depth`` and ``mask``, of ``resolution`` x
+    ``resolution`` pixels."""
     r = int(resolution)
     height = float(camera_lib.CameraParams().height)
+    spaces = {"rgb": image_spec(r, r), "depth": Box(0.0, height, (r, r), jnp.float32),
+              "mask": Box(0, 1, (r, r), jnp.uint8)}
+    keys = ("rgb",) + (("depth",) if depth else ()) + (("mask",) if mask else ())
 
     def observe(physics, params):
         image = camera_lib.render(physics.positions, mesh, params, r)
-        return {"rgb": image["rgb"], "depth": image["depth"], "mask": image["mask"].astype(jnp.uint8)}
+        image = {"rgb": image["rgb"], "depth": image["depth"], "mask": image["mask"].astype(jnp.uint8)}
+        return {k: image[k] for k in keys}
 
-    spec = Dict(rgb=image_spec(r, r), depth=Box(0.0, height, (r, r), jnp.float32),
-                mask=Box(0, 1, (r, r), jnp.uint8))
-    return Sensor(observe=observe, spec=spec, name=f"top_down_camera({r})",
+    spec = Dict(**{k: spaces[k] for k in keys})
+    return Sensor(observe=observe, spec=spec, name=f"top_down_camera({r}{'' if depth else ',no depth'}"
+                                                   f"{'' if mask else ',no mask'})",
                   default_params=lambda: jax.tree_util.tree_map(jnp.float32, camera_lib.CameraParams()))
 
 
@@ -123,7 +129,8 @@ def cloth_dynamics(physics: ClothPhysics, initial: str) -> Dynamics:
 def build(domain: str = "square_fabric", task: str = "flattening", initial: str = "crumpled",
           action: Any = DEFAULT_ACTION, particles: int = 40, size: Any = None, resolution: int = 128,
           substeps: int = 8, horizon: int | None = None, wrap: Any = None, eval_episodes: int | None = None,
-          val_episodes: int | None = None, auto_reset: str = "lazy") -> Arena:
+          val_episodes: int | None = None, auto_reset: str = "lazy", depth: bool = True,
+          mask: bool = True) -> Arena:
     """Builds a cloth arena (see the module docstring for the keys)."""
     if domain not in DOMAINS:
         raise ArenaStringError(unknown_choice("cloth domain", domain, list(DOMAINS)))
@@ -134,6 +141,9 @@ def build(domain: str = "square_fabric", task: str = "flattening", initial: str 
     for key, value, low in [("particles", particles, 3), ("resolution", resolution, 16), ("substeps", substeps, 1)]:
         if not isinstance(value, int) or value < low:
             raise ArenaStringError(f"{key} must be an integer >= {low}, got {value!r}")
+    for key, value in [("depth", depth), ("mask", mask)]:
+        if not isinstance(value, bool):
+            raise ArenaStringError(f"{key} must be true or false, got {value!r}")
     if horizon is not None and (not isinstance(horizon, int) or horizon < 1):
         raise ArenaStringError(f"horizon must be a positive number of actions, got {horizon!r}")
     try:
@@ -156,7 +166,7 @@ def build(domain: str = "square_fabric", task: str = "flattening", initial: str 
         extra["num_eval_episodes"] = int(eval_episodes)
     if val_episodes is not None:
         extra["num_val_episodes"] = int(val_episodes)
-    arena = Arena(dynamics=cloth_dynamics(physics, initial), sensor=camera_sensor(mesh, resolution),
+    arena = Arena(dynamics=cloth_dynamics(physics, initial), sensor=camera_sensor(mesh, resolution, depth, mask),
                   task=chain(*tasks), tool=tool, name=f"cloth-{domain}-{task}", auto_reset=auto_reset, **extra)
     try:
         _ = arena.action_spec

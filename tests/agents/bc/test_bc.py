@@ -162,7 +162,7 @@ def test_clear_errors(pendulum, tmp_path):
     with pytest.raises(DatasetError, match="chunk=500 needs trajectories of at least 500 steps"):
         jarena_agents.build_agent("bc", {"dataset": path, "chunk": 500}).init_training(jax.random.key(0), arena)
     with pytest.raises(jarena_agents.ConfigError, match=r"unknown policy 'gmm'; valid policies: \['deterministic', "
-                                                        r"'gaussian'\]"):
+                                                        r"'gaussian', 'mixture'\]"):
         jarena_agents.build_agent("bc", {"policy": "gmm"})
     with pytest.raises(jarena_agents.ConfigError, match="policy 'gaussian' does not support Discrete actions"):
         gaussian = jarena_agents.build_agent("bc", {"policy": "gaussian"})

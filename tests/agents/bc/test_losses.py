@@ -3,7 +3,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jarena_agents.bc.losses import cross_entropy, gaussian_nll, mse
+from jarena_agents.bc.losses import cross_entropy, gaussian_nll, mixture_nll, mse
 
 HALF_LOG_2PI = 0.5 * np.log(2 * np.pi)  # 0.918939
 
@@ -56,3 +56,26 @@ def test_cross_entropy_by_hand():
 
 def test_cross_entropy_is_zero_for_certain_correct_predictions():
     assert float(cross_entropy(jnp.array([[50.0, -50.0, -50.0]]), jnp.array([0]))) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_mixture_nll_by_hand_and_with_one_component():
+    means = jnp.array([[[0.0], [4.0]]])  # one sample, M = 2 components, d = 1
+    log_stds = jnp.zeros((1, 2, 1))
+    logits = jnp.log(jnp.array([[0.25, 0.75]]))
+    target = jnp.array([[4.0]])
+    density = 0.25 * np.exp(-8.0) / np.sqrt(2 * np.pi) + 0.75 / np.sqrt(2 * np.pi)  # z = 4 and z = 0
+    assert float(mixture_nll(logits, means, log_stds, target)) == pytest.approx(-np.log(density), rel=1e-6)
+    # one component is the plain Gaussian NLL
+    mean, log_std, target = jnp.array([[0.5, -1.0]]), jnp.array([[0.2, -0.3]]), jnp.array([[1.0, 2.0]])
+    assert float(mixture_nll(jnp.zeros((1, 1)), mean[:, None], log_std[:, None], target)) == pytest.approx(
+        float(gaussian_nll(mean, log_std, target)), rel=1e-6)
+
+
+def test_mixture_nll_prefers_a_component_on_each_mode_to_one_between_them():
+    target = jnp.array([[-1.0], [1.0]])  # two demonstrations, two modes
+    log_stds = jnp.full((2, 2, 1), np.log(0.1))
+    logits = jnp.zeros((2, 2))
+    on_modes = jnp.broadcast_to(jnp.array([[-1.0], [1.0]]), (2, 2, 1))
+    between = jnp.zeros((2, 2, 1))
+    assert float(mixture_nll(logits, on_modes, log_stds, target)) < float(
+        mixture_nll(logits, between, log_stds, target)) - 10

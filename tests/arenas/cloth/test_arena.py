@@ -41,6 +41,7 @@ def test_the_benchmark_strings_are_listed_and_build():
     ("cloth|particles:2", ["particles", ">= 3"]),
     ("cloth|size:[0.4,2.0]", ["size"]),
     ("cloth|horizon:0", ["horizon"]),
+    ("cloth|depth:no", ["depth", "true or false"]),
 ])
 def test_bad_strings_name_the_valid_choices(string, words):
     with pytest.raises(ArenaStringError) as e:
@@ -119,6 +120,15 @@ def test_the_observation_is_the_top_down_camera():
     np.testing.assert_array_equal(np.asarray(info.observation["rgb"]), np.asarray(image["rgb"]))
     np.testing.assert_array_equal(np.asarray(info.observation["mask"]), np.asarray(image["mask"]).astype(np.uint8))
     assert 0 < int(info.observation["mask"].sum()) < 32 * 32
+
+
+def test_depth_and_mask_can_be_left_out():
+    rgb_only = jarena.build_arena(f"cloth|initial:flat,{SMALL},depth:false,mask:false")
+    assert set(rgb_only.observation_spec.spaces) == {"rgb"}
+    _, info = rgb_only.reset(episode=0)
+    _, full = _arena(initial="flat").reset(episode=0)
+    np.testing.assert_array_equal(np.asarray(info.observation["rgb"]), np.asarray(full.observation["rgb"]))
+    assert set(jarena.build_arena(f"cloth|{SMALL},mask:false").observation_spec.spaces) == {"rgb", "depth"}
 
 
 def test_the_flattening_oracle_raises_coverage():

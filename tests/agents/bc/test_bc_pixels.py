@@ -1,0 +1,88 @@
+"""BC from pixels: the cloth arena's rgb camera through a CNN, the mixture policy and the quarter-turn
+augmentation (issue 17's `bc` clones the cloth oracle from pixels)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jarena
+import jarena_agents
+from jarena.data import TrajectoryDataset, configs_for
+from jarena.training import train_and_evaluate
+from jarena_agents.bc.agent import read_dataset
+from jarena_agents.config import ConfigError
+
+CLOTH = "cloth|particles:8,resolution:24,horizon:3,depth:false,mask:false,eval_episodes:4,val_episodes:2"
+SMALL_CNN = ((8, 4, 2), (8, 3, 2))
+
+
+@pytest.fixture(scope="module")
+def cloth_demos(tmp_path_factory):
+    """Analytic-pull oracle demonstrations on small crumpled cloths: rgb observations only."""
+    arena = jarena.build_arena(CLOTH)
+    path = str(tmp_path_factory.mktemp("demos") / "cloth")
+    oracle = jarena_agents.build_agent("oracle_cloth_flattening", {"lookahead": False})
+    with TrajectoryDataset(path, "w", **configs_for(arena)) as dataset:
+        jarena.collect(oracle, arena, dataset, 24, key=jax.random.key(1), progress=False)
+    return arena, path
+
+
+def _train(arena, path, steps, **config):
+    agent = jarena_agents.build_agent("bc", {"dataset": path, "cnn": SMALL_CNN, "hidden": (64,), "batch_size": 32,
+                                             "total_steps": steps, **config})
+    return agent, train_and_evaluate(agent, arena, jax.random.key(0), validate_every=0, progress=False)
+
+
+def test_bc_learns_the_pick_and_place_from_the_image_alone(cloth_demos):
+    """The arena observes only rgb: the network's sole input is the CNN's, so fitting the oracle's actions
+    better than their mean (the best constant) means it reads the images."""
+    arena, path = cloth_demos
+    assert set(arena.spec.observation.spaces) == {"rgb"}
+    agent, result = _train(arena, path, 400, learning_rate=3e-3)
+    assert "encoder" in result.train_state.params["params"]  # a CNN torso, not an MLP over flattened pixels
+    host = read_dataset(path, arena, 1)
+    actions = host["data"]["action"]
+    starts = np.concatenate([[0], np.cumsum(host["lengths"])[:-1]]) + np.arange(len(host["lengths"]))
+    # each action's observation
+    rows = np.concatenate([s + np.arange(n) for s, n in zip(starts, host["lengths"], strict=True)])
+    policy = agent.policy(result.train_state, arena.spec, True)
+    _, info = jarena.batch_reset(arena, jax.random.key(0), 1)
+    info = info.replace(observation={"rgb": jnp.asarray(host["data"]["observation"]["rgb"][rows])},
+                        goal=jax.tree_util.tree_map(lambda g: jnp.zeros((len(rows),) + g.shape[1:], g.dtype),
+                                                    info.goal))
+    predicted, _ = jax.jit(agent.act)(policy, info, jax.random.key(2))
+    mse = float(np.mean(np.sum((np.asarray(predicted) - actions) ** 2, -1)))
+    constant = float(np.mean(np.sum((actions - actions.mean(0)) ** 2, -1)))
+    print(f"bc from pixels: mse {mse:.4f}, best constant {constant:.4f}")
+    assert mse < 0.5 * constant
+    assert result.evaluation.episodes.size == 4  # it acted in the arena from its camera
+
+
+def test_mixture_policy_and_rotate90_augmentation_train_and_act(cloth_demos):
+    arena, path = cloth_demos
+    agent, result = _train(arena, path, 60, policy="mixture", components=3, augment="rotate90")
+    losses = [h["loss"] for h in result.history]
+    assert np.isfinite(losses).all() and losses[-1] < losses[0]
+    _, info = jarena.batch_reset(arena, jax.random.key(1), 5)
+    for deterministic in (True, False):
+        action, _ = agent.act(agent.policy(result.train_state, arena.spec, deterministic), info, jax.random.key(2))
+        assert action.shape == (5, 4) and bool(jnp.all(jnp.abs(action) <= 1.0))
+    again, _ = agent.act(agent.policy(result.train_state, arena.spec, True), info, jax.random.key(7))
+    first, _ = agent.act(agent.policy(result.train_state, arena.spec, True), info, jax.random.key(2))
+    np.testing.assert_array_equal(first, again)  # eval mode: the most probable component's mean, no noise
+
+
+def test_rotate90_needs_image_point_actions_and_images_only(tmp_path):
+    pendulum = jarena.build_arena("classic|domain:pendulum,task:swingup")
+    with TrajectoryDataset(tmp_path / "p", "w", **configs_for(pendulum)) as dataset:
+        jarena.collect(jarena_agents.build_agent("random"), pendulum, dataset, 2, key=jax.random.key(0),
+                       progress=False)
+    agent = jarena_agents.build_agent("bc", {"dataset": str(tmp_path / "p"), "augment": "rotate90"})
+    with pytest.raises(ConfigError, match="no image observations"):
+        agent.init_training(jax.random.key(0), pendulum)
+    with pytest.raises(ConfigError, match="unknown augment 'flip'.*rotate90"):
+        jarena_agents.build_agent("bc", {"augment": "flip"})
+    with_depth = jarena.build_arena("cloth|particles:8,resolution:16,horizon:2")
+    with pytest.raises(ConfigError, match="more than images"):
+        jarena_agents.bc.agent.check_rotate90(with_depth.spec)
