@@ -58,13 +58,19 @@ class PixelEncoder(nn.Module):
     """A convolutional torso for uint8 images: each key's (*, H, W, C) image scaled to [-0.5, 0.5], through
     ``layers`` of ``(features, kernel, stride)`` ReLU convolutions, flattened; the keys' features concatenated
     (sorted by key). Defaults: the Nature DQN's layers and padding ('VALID': 64 x 64 -> 4 x 4 x 64 features;
-    'SAME' keeps ceil(H / stride))."""
+    'SAME' keeps ceil(H / stride)). With ``output="spatial_softmax"`` each of the last layer's C feature maps
+    becomes the expected image point ``(u, v)`` in [-1, 1] of its softmax over the pixels (Levine et al. 2016's
+    keypoints, robomimic's visual encoder): 2 C features that say *where*, for policies that output image
+    points."""
 
     layers: Sequence[tuple[int, int, int]] = ((32, 8, 4), (64, 4, 2), (64, 3, 1))
     padding: str = "VALID"
+    output: str = "flatten"
 
     @nn.compact
     def __call__(self, images: dict) -> jax.Array:
+        if self.output not in ENCODER_OUTPUTS:
+            raise ValueError(f"unknown PixelEncoder output {self.output!r}; choose from {', '.join(ENCODER_OUTPUTS)}")
         out = []
         for key in sorted(images):
             x = images[key]
@@ -77,8 +83,23 @@ class PixelEncoder(nn.Module):
                                      f"or strides, or padding 'SAME'")
                 x = nn.relu(nn.Conv(features, (kernel, kernel), (stride, stride), padding=self.padding,
                                     kernel_init=nn.initializers.orthogonal(np.sqrt(2)), name=f"{key}_conv{i}")(x))
-            out.append(x.reshape(batch + (-1,)))
+            out.append(spatial_softmax(x).reshape(batch + (-1,)) if self.output == "spatial_softmax"
+                       else x.reshape(batch + (-1,)))
         return jnp.concatenate(out, axis=-1)
+
+
+#: PixelEncoder outputs by config name.
+ENCODER_OUTPUTS = ("flatten", "spatial_softmax")
+
+
+def spatial_softmax(features: jax.Array) -> jax.Array:
+    """Feature maps (N, H, W, C) -> float32 (N, C, 2): each channel's expected pixel centre ``(u, v)``
+    (normalised image coordinates in [-1, 1], u along the width) under its softmax over the H x W pixels."""
+    n, h, w, c = features.shape
+    weights = jax.nn.softmax(features.reshape(n, h * w, c).astype(jnp.float32), axis=1).reshape(n, h, w, c)
+    u = (jnp.arange(w, dtype=jnp.float32) + 0.5) / (w / 2) - 1.0
+    v = (jnp.arange(h, dtype=jnp.float32) + 0.5) / (h / 2) - 1.0
+    return jnp.stack([jnp.einsum("nhwc,w->nc", weights, u), jnp.einsum("nhwc,h->nc", weights, v)], axis=-1)
 
 
 #: Hidden-layer activations by config name (Brax's PPO networks use swish).
@@ -113,11 +134,12 @@ class EncodedMLP(nn.Module):
     cnn: Sequence[tuple[int, int, int]] = PixelEncoder.layers
     cnn_padding: str = PixelEncoder.padding
     activation: str = "tanh"
+    cnn_output: str = PixelEncoder.output
 
     @nn.compact
     def __call__(self, x):
         if isinstance(x, dict):
-            features = PixelEncoder(tuple(self.cnn), self.cnn_padding, name="encoder")(x["images"])
+            features = PixelEncoder(tuple(self.cnn), self.cnn_padding, self.cnn_output, name="encoder")(x["images"])
             x = jnp.concatenate([x["vector"], features], axis=-1)
         return MLP(self.hidden, self.features, activation=self.activation, name="mlp")(x)
 

@@ -99,6 +99,8 @@ class BCConfig:
       cnn: ``(features, kernel, stride)`` of the image encoder's ReLU convolutions (arenas with image
         observations only; default: the Nature DQN's).
       cnn_padding: the convolutions' padding, ``"VALID"`` or ``"SAME"``.
+      cnn_output: ``"flatten"`` (the last feature maps, flattened) or ``"spatial_softmax"`` (each map's
+        expected image point: :class:`jarena_agents.networks.PixelEncoder`).
     """
 
     dataset: str = ""
@@ -116,6 +118,7 @@ class BCConfig:
     augment: str = "none"
     cnn: tuple = networks.PixelEncoder.layers
     cnn_padding: str = networks.PixelEncoder.padding
+    cnn_output: str = networks.PixelEncoder.output
 
     @property
     def steps_per_update(self) -> int:
@@ -370,6 +373,8 @@ def make_bc(config=None) -> TrainableAgent:
         raise ConfigError(f"bc: unknown policy {cfg.policy!r}; valid policies: {list(POLICIES)}")
     if cfg.augment not in AUGMENTATIONS:
         raise ConfigError(f"bc: unknown augment {cfg.augment!r}; choose from {list(AUGMENTATIONS)}")
+    if cfg.cnn_output not in networks.ENCODER_OUTPUTS:
+        raise ConfigError(f"bc: unknown cnn_output {cfg.cnn_output!r}; choose from {list(networks.ENCODER_OUTPUTS)}")
     if cfg.cnn_padding not in networks.PADDINGS:
         raise ConfigError(f"bc: unknown cnn_padding {cfg.cnn_padding!r}; choose from {list(networks.PADDINGS)}")
 
@@ -378,7 +383,7 @@ def make_bc(config=None) -> TrainableAgent:
         features = cfg.chunk * head.features(spec.action, cfg)
         if networks.image_keys(spec):
             return head, networks.EncodedMLP(tuple(cfg.hidden), features, tuple(tuple(c) for c in cfg.cnn),
-                                             cfg.cnn_padding)
+                                             cfg.cnn_padding, cnn_output=cfg.cnn_output)
         return head, networks.MLP(tuple(cfg.hidden), features)
 
     def observe(spec: ArenaSpec, info: Info):

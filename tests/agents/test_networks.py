@@ -66,3 +66,19 @@ def test_mlp_activation_is_configurable():
     assert not np.allclose(outputs["tanh"], outputs["swish"])
     with pytest.raises(ValueError, match="unknown activation 'gelu'; choose from tanh, relu, swish"):
         networks.MLP((4,), 1, activation="gelu").init(jax.random.key(0), x)
+
+
+def test_spatial_softmax_gives_each_channel_its_expected_image_point():
+    from jarena_agents.networks import PixelEncoder, spatial_softmax
+
+    maps = np.full((1, 8, 8, 3), -50.0, np.float32)
+    maps[0, 1, 6, 0] = 50.0  # channel 0 peaks at row 1, column 6
+    maps[0, 4, 2, 1] = 50.0  # channel 1 at row 4, column 2
+    out = np.asarray(spatial_softmax(jnp.asarray(maps)))  # (N, C, 2): (u, v) per channel
+    np.testing.assert_allclose(out[0, 0], [6.5 / 4 - 1, 1.5 / 4 - 1], atol=1e-6)
+    np.testing.assert_allclose(out[0, 1], [2.5 / 4 - 1, 4.5 / 4 - 1], atol=1e-6)
+    np.testing.assert_allclose(out[0, 2], [0.0, 0.0], atol=1e-6)  # a flat map: the image's centre
+    encoder = PixelEncoder(((4, 3, 2),), "SAME", "spatial_softmax")
+    images = {"rgb": jnp.zeros((2, 5, 16, 16, 3), jnp.uint8)}
+    features = encoder.apply(encoder.init(jax.random.key(0), images), images)
+    assert features.shape == (2, 5, 8)  # 4 channels x (u, v)

@@ -59,9 +59,11 @@ def test_bc_learns_the_pick_and_place_from_the_image_alone(cloth_demos):
     assert result.evaluation.episodes.size == 4  # it acted in the arena from its camera
 
 
-def test_mixture_policy_and_rotate90_augmentation_train_and_act(cloth_demos):
+def test_mixture_policy_keypoints_and_rotate90_augmentation_train_and_act(cloth_demos):
     arena, path = cloth_demos
-    agent, result = _train(arena, path, 60, policy="mixture", components=3, augment="rotate90")
+    agent, result = _train(arena, path, 60, policy="mixture", components=3, augment="rotate90",
+                           cnn_output="spatial_softmax", cnn_padding="SAME")
+    assert result.train_state.params["params"]["mlp"]["Dense_0"]["kernel"].shape[0] == 2 * SMALL_CNN[-1][0]
     losses = [h["loss"] for h in result.history]
     assert np.isfinite(losses).all() and losses[-1] < losses[0]
     _, info = jarena.batch_reset(arena, jax.random.key(1), 5)
@@ -83,6 +85,8 @@ def test_rotate90_needs_image_point_actions_and_images_only(tmp_path):
         agent.init_training(jax.random.key(0), pendulum)
     with pytest.raises(ConfigError, match="unknown augment 'flip'.*rotate90"):
         jarena_agents.build_agent("bc", {"augment": "flip"})
+    with pytest.raises(ConfigError, match="unknown cnn_output 'keypoints'.*spatial_softmax"):
+        jarena_agents.build_agent("bc", {"cnn_output": "keypoints"})
     with_depth = jarena.build_arena("cloth|particles:8,resolution:16,horizon:2")
     with pytest.raises(ConfigError, match="more than images"):
         jarena_agents.bc.agent.check_rotate90(with_depth.spec)
