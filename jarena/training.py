@@ -30,6 +30,7 @@ import numpy as np
 from jarena import distributed
 from jarena.checkpoint import Checkpointer
 from jarena.core.arena import Arena
+from jarena.core.types import ArenaState, Info
 from jarena.render.frames import RenderError, can_render
 from jarena.render.record import check_video, write_episodes
 from jarena.runners.evaluate import run_episodes, validate
@@ -87,6 +88,19 @@ class TrainResult:
     evaluation: EvalResult | None
     policy: Any = None
     selected: dict | None = None
+
+
+def _is_episode(x) -> bool:
+    return isinstance(x, ArenaState | Info)
+
+
+def fresh_episodes(restored, fresh):
+    """``restored`` (a train state from a checkpoint) with each of its arena states and infos (every
+    ``ArenaState`` and ``Info`` in it) taken from ``fresh``, a train state of the same structure made in this
+    process: what a resumed run on a host arena steps from, since a host arena's state is a handle on its
+    process's simulators. Everything else (parameters, optimiser, buffers, counters) stays restored."""
+    return jax.tree_util.tree_map(lambda old, new: new if _is_episode(old) else old, restored, fresh,
+                                  is_leaf=_is_episode)
 
 
 def _check_trainable(agent) -> None:
@@ -182,7 +196,11 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
     first_chunk = 0
     if checkpointer is not None and checkpointer.latest_step() is not None:
         first_chunk = checkpointer.latest_step()
+        fresh = train_state
         train_state, meta = checkpointer.restore(train_state, first_chunk)
+        if arena.dynamics.on_host:  # a checkpoint holds handles on the last process's simulators, not their state
+            train_state = fresh_episodes(train_state, fresh)
+            _say(main, "host arena: the resumed run starts new episodes (a simulator's state is not checkpointed)")
         history, validations_done = meta.get("history", []), meta.get("validations", [])
         keeper.resume(train_state, first_chunk)
         _say(main, f"resuming from step {first_chunk * chunk_updates * steps_per_update} of "

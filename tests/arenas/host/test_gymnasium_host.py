@@ -1,6 +1,8 @@
 """Gymnasium envs as host arenas: the same physics as jarena's own arenas from the same states, episode ids
 mapped to seeds, the host auto-reset, open batches, clear errors, and agents that train and evaluate on them."""
 
+import shutil
+
 import gymnasium
 import jax
 import jax.numpy as jnp
@@ -237,3 +239,38 @@ def test_dict_and_image_spaces_become_observation_keys_and_odd_spaces_are_refuse
         action_spec(spaces.Discrete(3, start=1))
     with pytest.raises(TypeError, match="Box of dtype bool is not supported"):
         observation_spec(spaces.Box(0, 1, (2,), bool))
+
+
+def test_a_resumed_run_on_a_host_arena_starts_new_episodes_in_this_process(tmp_path, capsys):
+    """A checkpoint holds handles on the simulators of the process that wrote it, not their state: the resumed
+    run takes its arena states and infos from its own reset, and keeps everything else from the checkpoint."""
+    from jarena.core.types import ArenaState, Info
+    from jarena.training import fresh_episodes
+
+    arena = jarena.build_arena("gym|id:CartPole-v1,eval_episodes:2,val_episodes:2")
+    agent = jarena_agents.build_agent("ppo", {**jarena.retrieve_config("ppo", arena), "total_steps": 4096})
+    init = jax.jit(agent.init_training, static_argnums=1)
+    restored, fresh = init(jax.random.key(0), arena), init(jax.random.key(1), arena)
+    merged = fresh_episodes(restored, fresh)
+    is_episode = lambda x: isinstance(x, ArenaState | Info)  # noqa: E731
+    episodes = [x for x in jax.tree_util.tree_leaves(merged, is_leaf=is_episode) if is_episode(x)]
+    assert episodes  # PPO's train state holds its arenas' states
+    for got, want in zip(jax.tree_util.tree_leaves(episodes), jax.tree_util.tree_leaves(
+            [x for x in jax.tree_util.tree_leaves(fresh, is_leaf=is_episode) if is_episode(x)]), strict=True):
+        np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(jax.tree_util.tree_leaves(merged.params)[0],
+                                  jax.tree_util.tree_leaves(restored.params)[0])
+
+    def run():
+        return train_and_evaluate(agent, arena, jax.random.key(0), run_dir=tmp_path, checkpoint_every=1,
+                                  validations=1, progress=False)
+
+    first = run()
+    latest = max(int(p.name) for p in (tmp_path / "checkpoints").iterdir() if p.name.isdigit())
+    for step in (latest, latest - 1):  # as if the process had died two chunks before the end
+        shutil.rmtree(tmp_path / "checkpoints" / str(step))
+    resumed = run()
+    out = capsys.readouterr().out
+    assert "starts new episodes" in out and "resuming from step" in out
+    assert len(resumed.history) == len(first.history)
+    assert resumed.evaluation.summary()["episodes"] == 2
