@@ -196,11 +196,11 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
     first_chunk = 0
     if checkpointer is not None and checkpointer.latest_step() is not None:
         first_chunk = checkpointer.latest_step()
-        fresh = train_state
-        train_state, meta = checkpointer.restore(train_state, first_chunk)
+        restored, meta = checkpointer.restore(train_state, first_chunk)
         if arena.dynamics.on_host:  # a checkpoint holds handles on the last process's simulators, not their state
-            train_state = fresh_episodes(train_state, fresh)
+            restored = fresh_episodes(restored, train_state)
             _say(main, "host arena: the resumed run starts new episodes (a simulator's state is not checkpointed)")
+        train_state = restored
         history, validations_done = meta.get("history", []), meta.get("validations", [])
         keeper.resume(train_state, first_chunk)
         _say(main, f"resuming from step {first_chunk * chunk_updates * steps_per_update} of "

@@ -83,13 +83,17 @@ class PixelEncoder(nn.Module):
                                      f"or strides, or padding 'SAME'")
                 x = nn.relu(nn.Conv(features, (kernel, kernel), (stride, stride), padding=self.padding,
                                     kernel_init=nn.initializers.orthogonal(np.sqrt(2)), name=f"{key}_conv{i}")(x))
-            out.append(spatial_softmax(x).reshape(batch + (-1,)) if self.output == "spatial_softmax"
-                       else x.reshape(batch + (-1,)))
+            out.append(ENCODER_OUTPUTS[self.output](x).reshape(batch + (-1,)))
         return jnp.concatenate(out, axis=-1)
 
 
-#: PixelEncoder outputs by config name.
-ENCODER_OUTPUTS = ("flatten", "spatial_softmax")
+def encode_images(x, cnn: Sequence[tuple[int, int, int]], padding: str, output: str = "flatten") -> jax.Array:
+    """Inside a compact module: a float (*, D) vector as it is, or :func:`split_observation`'s dict as its vector
+    joined with its images' :class:`PixelEncoder` features (a submodule named ``encoder``)."""
+    if not isinstance(x, dict):
+        return x
+    features = PixelEncoder(tuple(cnn), padding, output, name="encoder")(x["images"])
+    return jnp.concatenate([x["vector"], features], axis=-1)
 
 
 def spatial_softmax(features: jax.Array) -> jax.Array:
@@ -100,6 +104,10 @@ def spatial_softmax(features: jax.Array) -> jax.Array:
     u = (jnp.arange(w, dtype=jnp.float32) + 0.5) / (w / 2) - 1.0
     v = (jnp.arange(h, dtype=jnp.float32) + 0.5) / (h / 2) - 1.0
     return jnp.stack([jnp.einsum("nhwc,w->nc", weights, u), jnp.einsum("nhwc,h->nc", weights, v)], axis=-1)
+
+
+#: PixelEncoder outputs by config name: the last feature maps (N, H, W, C) -> features (N, ...).
+ENCODER_OUTPUTS = {"flatten": lambda maps: maps, "spatial_softmax": spatial_softmax}
 
 
 #: Hidden-layer activations by config name (Brax's PPO networks use swish).
@@ -138,9 +146,7 @@ class EncodedMLP(nn.Module):
 
     @nn.compact
     def __call__(self, x):
-        if isinstance(x, dict):
-            features = PixelEncoder(tuple(self.cnn), self.cnn_padding, self.cnn_output, name="encoder")(x["images"])
-            x = jnp.concatenate([x["vector"], features], axis=-1)
+        x = encode_images(x, self.cnn, self.cnn_padding, self.cnn_output)
         return MLP(self.hidden, self.features, activation=self.activation, name="mlp")(x)
 
 
@@ -229,9 +235,7 @@ class ActorCritic(nn.Module):
 
     @nn.compact
     def __call__(self, x):
-        if isinstance(x, dict):  # split_observation's {"vector", "images"}: one shared CNN torso for the images
-            features = PixelEncoder(tuple(self.cnn), self.cnn_padding, name="encoder")(x["images"])
-            x = jnp.concatenate([x["vector"], features], axis=-1)
+        x = encode_images(x, self.cnn, self.cnn_padding)  # one CNN torso shared by both MLPs
         value_hidden = self.hidden if self.value_hidden is None else self.value_hidden
         value = MLP(value_hidden, 1, output_scale=1.0, activation=self.activation, name="critic")(x)[..., 0]
         if isinstance(self.action_spec, Discrete):
