@@ -27,6 +27,7 @@ Usage::
     python benchmarks/cloth_throughput.py --help
     python benchmarks/cloth_throughput.py --batch-sizes 1,4 --actions 2 --steps 8 --repeats 1   # CPU smoke run
     python benchmarks/cloth_throughput.py --out results/cloth_gpu.md        # GPU: B = 1, 64, 1024, 4096
+    python benchmarks/cloth_throughput.py --solvers xla,fused --batch-sizes 1024   # the two solvers side by side
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ except ImportError:  # run from a checkout without installing: put the repositor
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     import jarena
 from jarena.arenas.cloth import camera as camera_lib  # noqa: E402
+from jarena.arenas.cloth.physics import SOLVERS  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from cartpole_throughput import fmt, parse_batches, write_report  # noqa: E402
@@ -55,9 +57,9 @@ SOFTGYM_ACTIONS_PER_S = 9.0  # upper end of SoftGym's per-process rate, see the 
 SOFTGYM_STEPS_PER_S = 440.0
 
 
-def make(measurement: str, batch: int, args):
+def make(measurement: str, batch: int, solver: str, args):
     """Returns ``(run, carry, units)``: ``run(carry) -> carry`` one timed call, ``units`` counted per call."""
-    arena = jarena.build_arena(f"{ARENA},resolution:{args.resolution},horizon:{args.horizon}")
+    arena = jarena.build_arena(f"{ARENA},resolution:{args.resolution},horizon:{args.horizon},solver:{solver}")
     params = arena.default_params()
     states, _ = jax.jit(lambda k: jarena.batch_reset(arena, k, batch, params))(jax.random.key(args.seed))
     jax.block_until_ready(states)
@@ -113,9 +115,10 @@ def make(measurement: str, batch: int, args):
     return run, (physics_states.positions, jnp.zeros(())), batch * args.frames
 
 
-def time_batch(batch: int, args) -> dict:
-    return time_interleaved({m: (lambda m=m: make(m, batch, args)) for m in args.measurements}, args.repeats,
-                            label=f"B={batch:6d} ")
+def time_batch(batch: int, solver: str, args) -> dict:
+    measurements = [m for m in args.measurements if m != "render" or solver == args.solvers[0]]
+    return time_interleaved({m: (lambda m=m: make(m, batch, solver, args)) for m in measurements}, args.repeats,
+                            label=f"B={batch:6d} {solver} ")
 
 
 def markdown(env: dict, rows: list[dict], args) -> str:
@@ -125,8 +128,9 @@ def markdown(env: dict, rows: list[dict], args) -> str:
              f"One action = {steps_per_action} physics steps (8 substeps each), 40 x 40 particles, "
              f"{args.resolution} x {args.resolution} observations. Ratio: against SoftGym's ~"
              f"{SOFTGYM_ACTIONS_PER_S:g} actions/s ({SOFTGYM_STEPS_PER_S:g} FleX steps/s) per process.", "",
-             "| B | actions/s (act) | physics steps/s in act | actions/s (act+reset) | physics steps/s (physics) "
-             "| frames/s (render) | act vs SoftGym |", "|---:|---:|---:|---:|---:|---:|---:|"]
+             "| B | solver | actions/s (act) | physics steps/s in act | actions/s (act+reset) "
+             "| physics steps/s (physics) | frames/s (render) | act vs SoftGym |",
+             "|---:|---|---:|---:|---:|---:|---:|---:|"]
     for row in rows:
         r = row["results"]
         act = r.get("act", {}).get("per_s")
@@ -134,7 +138,7 @@ def markdown(env: dict, rows: list[dict], args) -> str:
                  fmt(r.get("act+reset", {}).get("per_s")), fmt(r.get("physics", {}).get("per_s")),
                  fmt(r.get("render", {}).get("per_s")),
                  "-" if act is None else f"{act / SOFTGYM_ACTIONS_PER_S:.0f}x"]
-        lines.append(f"| {row['batch']} | " + " | ".join(cells) + " |")
+        lines.append(f"| {row['batch']} | {row['solver']} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -151,6 +155,9 @@ def parse_args(argv=None):
     p.add_argument("--horizon", type=int, default=30, help="actions per episode for act+reset (default 30)")
     p.add_argument("--resolution", type=int, default=128, help="camera resolution (default 128)")
     p.add_argument("--repeats", type=int, default=3, help="timed calls per measurement (default 3)")
+    p.add_argument("--solvers", default="auto",
+                   help=f"comma-separated cloth solvers to time side by side, from {['auto', *SOLVERS]} "
+                        "(default auto: the fused kernel on a GPU)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default=None, help="write a markdown table (and JSON beside it) here")
     args = p.parse_args(argv)
@@ -159,6 +166,10 @@ def parse_args(argv=None):
     if unknown or not names:
         p.error(f"unknown measurement(s) {unknown}; choose from {list(MEASUREMENTS)}")
     args.measurements = names
+    args.solvers = [v.strip() for v in args.solvers.split(",") if v.strip()]
+    bad = sorted(set(args.solvers) - {"auto", *SOLVERS})
+    if bad or not args.solvers:
+        p.error(f"unknown solver(s) {bad}; choose from {['auto', *SOLVERS]}")
     for key in ("actions", "steps", "frames", "horizon", "repeats"):
         if getattr(args, key) < 1:
             p.error(f"--{key} must be >= 1")
@@ -170,7 +181,8 @@ def parse_args(argv=None):
 def main(argv=None) -> int:
     args = parse_args(argv)
     env = environment()
-    rows = [{"batch": b, "results": time_batch(b, args)} for b in args.batch_sizes]
+    rows = [{"batch": b, "solver": v, "results": time_batch(b, v, args)}
+            for b in args.batch_sizes for v in args.solvers]
     table = markdown(env, rows, args)
     print(table)
     if args.out:

@@ -18,6 +18,8 @@ Builder ``cloth``::
   uint8 (R, R) from the top-down camera, ``resolution`` R (default 128); ``depth:false`` and ``mask:false``
   drop those two (a pixel policy that reads only ``rgb``, and smaller datasets). Oracles read the particles
   from ``arena.privileged(state).physics.positions``.
+- ``solver``: how the physics substeps run (:data:`.physics.SOLVERS`): ``auto`` (default: the fused Pallas
+  kernel of :mod:`.fused` on a GPU, jax.numpy elsewhere), ``xla`` or ``fused``.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from jarena.arenas.cloth import tasks as tasks_lib
 from jarena.arenas.cloth import tools as tools_lib
 from jarena.arenas.cloth.initial import INITIAL_STATES
 from jarena.arenas.cloth.mesh import ClothMesh
-from jarena.arenas.cloth.physics import ClothPhysics
+from jarena.arenas.cloth.physics import SOLVERS, ClothPhysics
 from jarena.building.builder import make_task, make_tool, register_arena_builder, register_tool
 from jarena.building.grammar import ArenaStringError, Call
 from jarena.building.registry import unknown_choice
@@ -130,7 +132,7 @@ def build(domain: str = "square_fabric", task: str = "flattening", initial: str 
           action: Any = DEFAULT_ACTION, particles: int = 40, size: Any = None, resolution: int = 128,
           substeps: int = 8, horizon: int | None = None, wrap: Any = None, eval_episodes: int | None = None,
           val_episodes: int | None = None, auto_reset: str = "lazy", depth: bool = True,
-          mask: bool = True) -> Arena:
+          mask: bool = True, solver: str = "auto") -> Arena:
     """Builds a cloth arena (see the module docstring for the keys)."""
     if domain not in DOMAINS:
         raise ArenaStringError(unknown_choice("cloth domain", domain, list(DOMAINS)))
@@ -146,6 +148,8 @@ def build(domain: str = "square_fabric", task: str = "flattening", initial: str 
             raise ArenaStringError(f"{key} must be true or false, got {value!r}")
     if horizon is not None and (not isinstance(horizon, int) or horizon < 1):
         raise ArenaStringError(f"horizon must be a positive number of actions, got {horizon!r}")
+    if solver != "auto" and solver not in SOLVERS:
+        raise ArenaStringError(unknown_choice("cloth solver", solver, ["auto", *SOLVERS]))
     try:
         reset_strategy(auto_reset)
     except ValueError as e:
@@ -153,7 +157,7 @@ def build(domain: str = "square_fabric", task: str = "flattening", initial: str 
     width, height = _size(domain, size)
     mesh = ClothMesh.of_size(width, height, cols=particles) if width >= height else \
         ClothMesh.of_size(width, height, particles_per_metre=(particles - 1) / height)
-    physics = ClothPhysics(mesh, num_pickers=_num_pickers(action), substeps=substeps)
+    physics = ClothPhysics(mesh, num_pickers=_num_pickers(action), substeps=substeps, solver=solver)
     tool = make_tool(action)
     steps = max(tool.substeps, 1)
     if horizon is None:

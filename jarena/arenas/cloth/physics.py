@@ -45,7 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jarena.arenas.cloth import collision
+from jarena.arenas.cloth import collision, fused
 from jarena.arenas.cloth.collision import Vec
 from jarena.arenas.cloth.mesh import ClothMesh
 from jarena.core.spec import Box
@@ -139,6 +139,8 @@ class ClothPhysics:
       max_held: G, the most particles one picker holds (the nearest to its centre within the grasp radius).
       dt: seconds per control step (SoftGym's 0.01).
       substeps: XPBD substeps per control step.
+      solver: how the substeps run, a key of :data:`SOLVERS`, or ``"auto"``: ``fused`` on a GPU, ``xla``
+        elsewhere.
     """
 
     mesh: ClothMesh
@@ -146,12 +148,21 @@ class ClothPhysics:
     max_held: int = 32
     dt: float = 0.01
     substeps: int = 8
+    solver: str = "auto"
 
     def __post_init__(self):
+        if self.solver != "auto" and self.solver not in SOLVERS:
+            raise ValueError(f"unknown cloth solver {self.solver!r}; valid: auto, {', '.join(SOLVERS)}")
         if int(self.num_pickers) < 1:
             raise ValueError(f"a cloth needs at least one picker, got {self.num_pickers}")
         if int(self.substeps) < 1:
             raise ValueError(f"substeps must be at least 1, got {self.substeps}")
+
+    def resolve_solver(self) -> str:
+        """The key of :data:`SOLVERS` this cloth's steps use (``auto``: ``fused`` on a GPU, else ``xla``)."""
+        if self.solver != "auto":
+            return self.solver
+        return "fused" if jax.default_backend() == "gpu" else "xla"
 
     def default_params(self) -> ClothParams:
         """SoftGym-like constants; collision and contact distances scale with the mesh spacing."""
@@ -207,27 +218,13 @@ class ClothPhysics:
         tether_to = jnp.where(jnp.isfinite(jnp.min(rest, axis=-1)),
                               jnp.take_along_axis(held[None].repeat(n, 0), nearest[..., None], -1)[..., 0], -1)
         tether_length = jnp.min(rest, axis=-1)
-        decay = jnp.exp(-params.damping * h)
-
-        def substep(k, xv):
-            x, v = xv
-            frac = (k + 1.0) / self.substeps
-            pickers = start + frac * (end - start)
-            x_prev = x
-            v = tuple(c * decay for c in v)
-            v = (v[0], v[1], v[2] + -params.gravity * h)
-            x = tuple(c + u * h for c, u in zip(x, v, strict=True))
-            x = tuple(jnp.where(holder >= 0, pickers[jnp.maximum(holder, 0), a] + offset[a], x[a])
-                      for a in range(3))
-            x = self._solve_constraints(x, inv_mass, params, h)
-            x = self._tether(x, inv_mass, tether_to, tether_length)
-            x = collision.separate(x, x_prev, share, neighbours, params.self_collision_distance,
-                                   params.self_friction)
-            x = self._floor(x, x_prev, inv_mass, params)
-            return x, tuple((c - p) / h for c, p in zip(x, x_prev, strict=True))
-
-        x, v = jax.lax.fori_loop(0, self.substeps, substep,
-                                 (collision.components(state.positions), collision.components(state.velocities)))
+        scalars = jnp.stack([jnp.asarray(s, jnp.float32) for s in (
+            params.stretch_compliance / (h * h), params.shear_compliance / (h * h), params.bend_compliance / (h * h),
+            jnp.exp(-params.damping * h), -params.gravity * h, jnp.float32(h), params.particle_radius,
+            params.friction, params.self_collision_distance, params.self_friction)])
+        x, v = SOLVERS[self.resolve_solver()](
+            self.mesh, self.substeps, collision.components(state.positions), collision.components(state.velocities),
+            inv_mass, holder, offset, start, end, tether_to, tether_length, neighbours, share, scalars)
         return ClothState(positions=jnp.stack(x, axis=-1), velocities=jnp.stack(v, axis=-1), picker_positions=end,
                           picker_closed=closed, held=held, held_offsets=offsets, collision_overflow=overflow,
                           mesh=self.mesh)
@@ -274,37 +271,67 @@ class ClothPhysics:
         cols = self.mesh.cols
         return (jnp.abs(i // cols - j // cols) <= 1) & (jnp.abs(i % cols - j % cols) <= 1)
 
-    def _tether(self, x: Vec, inv_mass: jax.Array, to: jax.Array, length: jax.Array) -> Vec:
-        """Pulls each free particle within ``length`` (N, K) of its tether particle ``to`` (N, K; -1: none)."""
-        for k in range(to.shape[1]):
-            anchor = jnp.maximum(to[:, k], 0)
-            diff = [c - c[anchor] for c in x]
-            dist = jnp.sqrt(collision.dot_list(diff, diff) + 1e-12)
-            over = jnp.where((to[:, k] >= 0) & (inv_mass > 0), jnp.maximum(dist - length[:, k], 0.0), 0.0)
-            x = tuple(c - (over / dist) * d for c, d in zip(x, diff, strict=True))
-        return x
 
-    # ------------------------------------------------------------------ constraints
-    def _solve_constraints(self, x: Vec, inv_mass: jax.Array, params: ClothParams, h: float) -> Vec:
-        mesh = self.mesh
-        grid = tuple(c.reshape(mesh.rows, mesh.cols) for c in x)
-        w = inv_mass.reshape(mesh.rows, mesh.cols)
-        for pair in _constraint_pairs(mesh.rows, mesh.cols):
-            compliance = {"stretch": params.stretch_compliance, "shear": params.shear_compliance,
-                          "bend": params.bend_compliance}[pair.kind]
-            grid = _solve_pairs(grid, w, pair, pair.length * mesh.spacing, compliance / (h * h))
-        return tuple(c.ravel() for c in grid)
+def _tether(x: Vec, inv_mass: jax.Array, to: jax.Array, length: jax.Array) -> Vec:
+    """Pulls each free particle within ``length`` (N, K) of its tether particle ``to`` (N, K; -1: none)."""
+    for k in range(to.shape[1]):
+        anchor = jnp.maximum(to[:, k], 0)
+        diff = [c - c[anchor] for c in x]
+        dist = jnp.sqrt(collision.dot_list(diff, diff) + 1e-12)
+        over = jnp.where((to[:, k] >= 0) & (inv_mass > 0), jnp.maximum(dist - length[:, k], 0.0), 0.0)
+        x = tuple(c - (over / dist) * d for c, d in zip(x, diff, strict=True))
+    return x
 
-    def _floor(self, x: Vec, x_prev: Vec, inv_mass: jax.Array, params: ClothParams) -> Vec:
-        """Keeps free particles at least ``particle_radius`` above z = 0, with Coulomb friction."""
-        r = params.particle_radius
-        depth = jnp.maximum(r - x[2], 0.0) * inv_mass
-        tangential = [c - p for c, p in zip(x[:2], x_prev[:2], strict=True)]
-        speed = jnp.sqrt(collision.dot_list(tangential, tangential))
-        scale = jnp.clip(1.0 - params.friction * depth / jnp.maximum(speed, 1e-12), 0.0, 1.0)
-        xy = [jnp.where(depth > 0, p + t * scale, c)
-              for c, p, t in zip(x[:2], x_prev[:2], tangential, strict=True)]
-        return (*xy, x[2] + depth)
+
+def _solve_constraints(mesh: ClothMesh, x: Vec, inv_mass: jax.Array, alphas: dict[str, jax.Array]) -> Vec:
+    """One Gauss-Seidel pass over the 12 constraint colours; ``alphas``: compliance / h^2 per kind."""
+    grid = tuple(c.reshape(mesh.rows, mesh.cols) for c in x)
+    w = inv_mass.reshape(mesh.rows, mesh.cols)
+    for pair in _constraint_pairs(mesh.rows, mesh.cols):
+        grid = _solve_pairs(grid, w, pair, pair.length * mesh.spacing, alphas[pair.kind])
+    return tuple(c.ravel() for c in grid)
+
+
+def _floor(x: Vec, x_prev: Vec, inv_mass: jax.Array, radius: jax.Array, friction: jax.Array) -> Vec:
+    """Keeps free particles at least ``radius`` above z = 0, with Coulomb friction."""
+    depth = jnp.maximum(radius - x[2], 0.0) * inv_mass
+    tangential = [c - p for c, p in zip(x[:2], x_prev[:2], strict=True)]
+    speed = jnp.sqrt(collision.dot_list(tangential, tangential))
+    scale = jnp.clip(1.0 - friction * depth / jnp.maximum(speed, 1e-12), 0.0, 1.0)
+    xy = [jnp.where(depth > 0, p + t * scale, c)
+          for c, p, t in zip(x[:2], x_prev[:2], tangential, strict=True)]
+    return (*xy, x[2] + depth)
+
+
+def substeps_xla(mesh: ClothMesh, substeps: int, x: Vec, v: Vec, inv_mass, holder, offset: Vec, start, end,
+                 tether_to, tether_length, neighbours, share, scalars) -> tuple[Vec, Vec]:
+    """The substeps of one control step as jax.numpy (arguments and results as :func:`.fused.run_substeps`)."""
+    s = dict(zip(fused.SCALARS, scalars, strict=True))
+    h = s["h"]
+    alphas = {"stretch": s["alpha_stretch"], "shear": s["alpha_shear"], "bend": s["alpha_bend"]}
+
+    def substep(k, xv):
+        x, v = xv
+        frac = (k + 1.0) / substeps
+        pickers = start + frac * (end - start)
+        x_prev = x
+        v = tuple(c * s["decay"] for c in v)
+        v = (v[0], v[1], v[2] + s["fall"])
+        x = tuple(c + u * h for c, u in zip(x, v, strict=True))
+        x = tuple(jnp.where(holder >= 0, pickers[jnp.maximum(holder, 0), a] + offset[a], x[a])
+                  for a in range(3))
+        x = _solve_constraints(mesh, x, inv_mass, alphas)
+        x = _tether(x, inv_mass, tether_to, tether_length)
+        x = collision.separate(x, x_prev, share, neighbours, s["collision_distance"], s["self_friction"])
+        x = _floor(x, x_prev, inv_mass, s["particle_radius"], s["friction"])
+        return x, tuple((c - p) / h for c, p in zip(x, x_prev, strict=True))
+
+    return jax.lax.fori_loop(0, substeps, substep, (tuple(x), tuple(v)))
+
+
+SOLVERS = {"xla": substeps_xla, "fused": fused.run_substeps}
+"""How a control step's substeps run: ``xla`` (jax.numpy, any backend) or ``fused`` (one Pallas kernel per
+cloth, :mod:`.fused`; on a CPU it runs in Pallas' interpreter, for tests only)."""
 
 
 def _scatter_index(held: jax.Array, n: int) -> jax.Array:

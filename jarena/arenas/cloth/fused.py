@@ -1,0 +1,269 @@
+"""The substeps of one cloth control step as one fused GPU kernel (Pallas, Triton backend).
+
+:meth:`.physics.ClothPhysics.step` prepares what is constant over a control step (grasp, neighbour list,
+tethers) and then runs ``substeps`` XPBD substeps. Written as jax.numpy, each substep is some forty XLA
+kernels that read and write every particle array in GPU memory; here one kernel program runs every substep
+of one cloth, its arrays in registers and its few shared arrays in the L1/L2 caches, and ``vmap`` gives one
+program per cloth. The arithmetic is the jax.numpy solver's, operation for operation and in the same order
+(:func:`.physics.substeps_xla`), so the two agree to float rounding (``tests/arenas/cloth/test_fused.py``).
+
+How a program shares positions between its threads: Gauss-Seidel constraint passes, tethers and the
+self-collision read other particles' positions, so before each such read every thread stores its particles
+to a scratch array and waits at a barrier (``__syncthreads``), and waits again before the next store. Each
+particle finds its partner in a constraint colour from its own grid coordinates, and moves only itself, so
+no pass scatters.
+
+On a CPU the kernel runs in Pallas' interpreter (for tests; slow), where barriers are not needed.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.experimental import pallas as pl
+
+from jarena.arenas.cloth.collision import RELAXATION
+from jarena.arenas.cloth.mesh import ClothMesh
+
+SCALARS = ("alpha_stretch", "alpha_shear", "alpha_bend", "decay", "fall", "h", "particle_radius", "friction",
+           "collision_distance", "self_friction")
+"""Per-cloth float32 scalars the kernel reads, in order (then the pickers' start and end positions): XPBD
+compliances over h^2, velocity decay per substep, gravity's velocity change per substep (m/s, negative),
+substep length (s), floor distance (m), floor friction, self-collision distance (m), self friction."""
+
+
+def padded_size(n: int) -> int:
+    """Particles per kernel program: the next power of 2 (Triton's arrays have power-of-2 shapes)."""
+    return 1 << max(4, (int(n) - 1).bit_length())
+
+
+COLOURS = np.array([  # (di, dj, axis, div, colour, kind): the 12 colours of .physics._constraint_pairs, in order
+    (di, dj, axis, div, colour, kind)
+    for di, dj, axis, div, kind in [(0, 1, 1, 1, 0), (1, 0, 0, 1, 0), (1, 1, 0, 1, 1), (1, -1, 0, 1, 1),
+                                    (0, 2, 1, 2, 2), (2, 0, 0, 2, 2)]
+    for colour in (0, 1)], np.int32)
+"""Constraint colours: pair ``(i, j) - (i + di, j + dj)`` belongs to a colour if ``((i, j)[axis] // div) % 2 ==
+colour`` for its first particle; ``kind`` 0, 1, 2: stretch, shear, bend (:func:`.physics._constraint_pairs`)."""
+KINDS = ("stretch", "shear", "bend")
+
+
+def _first_of_pair(i, j, di, dj, axis, div, colour, rows, cols):
+    """bool: particle ``(i, j)`` is the first particle of a pair of this colour."""
+    along = jnp.where(axis == 0, i, j)
+    return (i + di < rows) & (j + dj >= 0) & (j + dj < cols) & ((along // div) % 2 == colour)
+
+
+def _kernel(scal_ref, colours_ref, xv_ref, inv_mass_ref, holder_ref, offset_ref, tether_to_ref, tether_len_ref,
+            neighbours_ref, share_ref,
+            out_ref, x_s, prev_s, touch_s, *,
+            mesh: ClothMesh, n_pad: int, substeps: int, num_pickers: int, max_neighbours: int, barrier):
+    rows, cols = mesh.rows, mesh.cols
+    n = rows * cols
+    p = jax.lax.broadcasted_iota(jnp.int32, (n_pad,), 0)
+    i, j = p // cols, p % cols
+    inside = p < n
+    scalar = {name: scal_ref[k] for k, name in enumerate(SCALARS)}
+    h = scalar["h"]
+    w = inv_mass_ref[...]
+    holder = holder_ref[...]
+    held = holder >= 0
+    slot = jnp.maximum(holder, 0)
+    base = len(SCALARS) + len(COLOURS)
+    start = [scal_ref[base + 3 * slot + a] for a in range(3)]
+    end = [scal_ref[base + 3 * num_pickers + 3 * slot + a] for a in range(3)]
+    offset = [offset_ref[a * n_pad:(a + 1) * n_pad] for a in range(3)]
+
+    def gather(ref, index, a):
+        return ref[index + a * n_pad]
+
+    def share_positions(x):
+        barrier()
+        for a in range(3):
+            x_s[a * n_pad:(a + 1) * n_pad] = x[a]
+        barrier()
+
+    def dot(u, v):
+        total = u[0] * v[0]
+        for a, b in zip(u[1:], v[1:], strict=True):
+            total = total + a * b
+        return total
+
+    def constraints(x):
+        def colour_pass(c, x):
+            di, dj, axis, div, colour, kind = (colours_ref[6 * c + f] for f in range(6))
+            alpha = scal_ref[kind]
+            rest = scal_ref[len(SCALARS) + c]
+            first = inside & _first_of_pair(i, j, di, dj, axis, div, colour, rows, cols)
+            fi, fj = i - di, j - dj
+            second = inside & (fi >= 0) & (fj >= 0) & (fj < cols) & _first_of_pair(
+                fi, fj, di, dj, axis, div, colour, rows, cols)
+            step = di * cols + dj
+            partner = jnp.clip(jnp.where(first, p + step, jnp.where(second, p - step, p)), 0, n - 1)
+            share_positions(x)
+            xq = [gather(x_s, partner, a) for a in range(3)]
+            wq = inv_mass_ref[partner]
+            # the pair (a, b) is (p, q) for a first particle and (q, p) for a second one
+            diff = [jnp.where(first, u - v, v - u) for u, v in zip(x, xq, strict=True)]
+            wa, wb = jnp.where(first, w, wq), jnp.where(first, wq, w)
+            dist = jnp.sqrt(dot(diff, diff) + 1e-12)
+            denom = wa + wb + alpha
+            lam = jnp.where((first | second) & (denom > 0), -(dist - rest) / jnp.maximum(denom, 1e-12), 0.0)
+            scale = lam / dist
+            return tuple(jnp.where(first, c + wa * (scale * d), jnp.where(second, c + -wb * (scale * d), c))
+                         for c, d in zip(x, diff, strict=True))
+
+        return list(jax.lax.fori_loop(0, len(COLOURS), colour_pass, tuple(x)))
+
+    def tethers(x):
+        share_positions(x)
+        for k in range(num_pickers):
+            to = tether_to_ref[k * n_pad:(k + 1) * n_pad]
+            length = tether_len_ref[k * n_pad:(k + 1) * n_pad]
+            anchor = jnp.maximum(to, 0)
+            diff = [c - gather(x_s, anchor, a) for a, c in enumerate(x)]
+            dist = jnp.sqrt(dot(diff, diff) + 1e-12)
+            over = jnp.where((to >= 0) & (w > 0), jnp.maximum(dist - length, 0.0), 0.0)
+            x = [c - (over / dist) * d for c, d in zip(x, diff, strict=True)]
+        return x
+
+    def separate(x, x_prev):
+        distance, friction = scalar["collision_distance"], scalar["self_friction"]
+        share_positions(x)
+
+        def slot(ref, k):
+            return ref[pl.ds(k * n_pad, n_pad)]
+
+        def count(k, touching):
+            nb = slot(neighbours_ref, k)
+            jj = jnp.maximum(nb, 0)
+            diff = [c - gather(x_s, jj, a) for a, c in enumerate(x)]
+            dist = jnp.sqrt(dot(diff, diff) + 1e-12)
+            return touching + jnp.where((nb >= 0) & (dist < distance), 1.0, 0.0)
+
+        touching = jax.lax.fori_loop(0, max_neighbours, count, jnp.zeros((n_pad,), jnp.float32))
+        touch_s[...] = touching
+        barrier()
+        moved = [c - q for c, q in zip(x, x_prev, strict=True)]
+
+        def push(k, total):
+            nb = slot(neighbours_ref, k)
+            jj = jnp.maximum(nb, 0)
+            xj = [gather(x_s, jj, a) for a in range(3)]
+            diff = [c - u for c, u in zip(x, xj, strict=True)]
+            dist = jnp.sqrt(dot(diff, diff) + 1e-12)
+            normal = [d / dist for d in diff]
+            depth = jnp.where((nb >= 0) & (dist < distance), distance - dist, 0.0)
+            motion = [m - (u - gather(prev_s, jj, a)) for a, (m, u) in enumerate(zip(moved, xj, strict=True))]
+            along = dot(motion, normal)
+            tangential = [m - along * nn for m, nn in zip(motion, normal, strict=True)]
+            slide = jnp.sqrt(dot(tangential, tangential) + 1e-12)
+            grip = jnp.where(depth > 0, jnp.minimum(1.0, friction * depth / slide), 0.0)
+            crowd = jnp.maximum(touching, touch_s[jj])
+            s = slot(share_ref, k) * jnp.minimum(1.0, RELAXATION / jnp.maximum(crowd, 1.0))
+            push = [(s * depth) * nn - (s * grip) * t for nn, t in zip(normal, tangential, strict=True)]
+            # the first slot's push alone, then the others added in order, as collision.separate
+            return tuple(jnp.where(k == 0, u, t + u) for t, u in zip(total, push, strict=True))
+
+        total = jax.lax.fori_loop(0, max_neighbours, push, tuple(jnp.zeros((n_pad,), jnp.float32) for _ in range(3)))
+        return [c + t for c, t in zip(x, total, strict=True)]
+
+    def floor(x, x_prev):
+        depth = jnp.maximum(scalar["particle_radius"] - x[2], 0.0) * w
+        tangential = [c - q for c, q in zip(x[:2], x_prev[:2], strict=True)]
+        speed = jnp.sqrt(dot(tangential, tangential))
+        scale = jnp.clip(1.0 - scalar["friction"] * depth / jnp.maximum(speed, 1e-12), 0.0, 1.0)
+        xy = [jnp.where(depth > 0, q + t * scale, c) for c, q, t in zip(x[:2], x_prev[:2], tangential, strict=True)]
+        return [*xy, x[2] + depth]
+
+    def substep(k, xv):
+        x, v = list(xv[:3]), list(xv[3:])
+        frac = (k + 1.0) / substeps
+        x_prev = x
+        barrier()
+        for a in range(3):
+            prev_s[a * n_pad:(a + 1) * n_pad] = x_prev[a]
+        v = [c * scalar["decay"] for c in v]
+        v[2] = v[2] + scalar["fall"]
+        x = [c + u * h for c, u in zip(x, v, strict=True)]
+        x = [jnp.where(held, (s + frac * (e - s)) + o, c) for c, s, e, o in zip(x, start, end, offset, strict=True)]
+        x = constraints(x)
+        x = tethers(x)
+        x = separate(x, x_prev)
+        x = floor(x, x_prev)
+        v = [(c - q) / h for c, q in zip(x, x_prev, strict=True)]
+        return (*x, *v)
+
+    xv = tuple(xv_ref[a * n_pad:(a + 1) * n_pad] for a in range(6))
+    xv = jax.lax.fori_loop(0, substeps, substep, xv)
+    for a in range(6):
+        out_ref[a * n_pad:(a + 1) * n_pad] = xv[a]
+
+
+def _no_barrier():
+    pass
+
+
+@functools.cache
+def _call(mesh: ClothMesh, substeps: int, num_pickers: int, max_neighbours: int, interpret: bool,
+          num_warps: int):
+    n_pad = padded_size(mesh.num_particles)
+    if interpret:
+        barrier = _no_barrier
+        extra = {"interpret": True}
+    else:
+        from jax.experimental.pallas import triton as plgpu
+
+        barrier = plgpu.debug_barrier
+        extra = {"compiler_params": plgpu.CompilerParams(num_warps=num_warps, num_stages=1)}
+    kernel = functools.partial(_kernel, mesh=mesh, n_pad=n_pad, substeps=int(substeps), num_pickers=num_pickers,
+                               max_neighbours=max_neighbours, barrier=barrier)
+    f32 = jnp.float32
+    return pl.pallas_call(kernel, out_shape=(jax.ShapeDtypeStruct((6 * n_pad,), f32),
+                                             jax.ShapeDtypeStruct((3 * n_pad,), f32),
+                                             jax.ShapeDtypeStruct((3 * n_pad,), f32),
+                                             jax.ShapeDtypeStruct((n_pad,), f32)), **extra)
+
+
+def run_substeps(mesh: ClothMesh, substeps: int, x, v, inv_mass, holder, offset, start, end, tether_to,
+                 tether_length, neighbours, share, scalars, *, interpret: bool | None = None, num_warps: int = 8):
+    """The substeps of one control step of one cloth (see :meth:`.physics.ClothPhysics.step`), fused.
+
+    Args:
+      mesh: the particle grid (N particles); substeps: how many.
+      x, v: positions and velocities, three float32 (N,) arrays each (metres, m/s).
+      inv_mass: float32 (N,), 0 for held particles; holder: int32 (N,), the picker holding each particle
+        (-1: none); offset: three float32 (N,), held particle minus picker.
+      start, end: float32 (K, 3), the pickers' positions at the step's start and end.
+      tether_to: int32 (N, K) (-1: none); tether_length: float32 (N, K), metres.
+      neighbours: int32 (N, M) (-1: none); share: float32 (N, M) (see :mod:`.collision`).
+      scalars: float32 (len(SCALARS),) in the order of :data:`SCALARS`.
+      interpret: run in Pallas' interpreter (default: on any backend but a GPU).
+
+    Returns:
+      positions and velocities, three float32 (N,) arrays each.
+    """
+    n, n_pad = mesh.num_particles, padded_size(mesh.num_particles)
+    k, m = start.shape[0], neighbours.shape[1]
+    if interpret is None:
+        interpret = jax.default_backend() != "gpu"
+
+    def pad(a, value=0):
+        return jnp.pad(a, (0, n_pad - n), constant_values=value)
+
+    def rows(a, value=0):
+        return jnp.concatenate([pad(a[:, c], value) for c in range(a.shape[1])])
+
+    rests = np.hypot(COLOURS[:, 0], COLOURS[:, 1]) * mesh.spacing  # metres, as .physics._constraint_pairs
+    scal = jnp.concatenate([jnp.asarray(scalars, jnp.float32), jnp.asarray(rests, jnp.float32), start.ravel(),
+                            end.ravel()])
+    scal = jnp.pad(scal, (0, padded_size(scal.shape[0]) - scal.shape[0]))
+    xv = jnp.concatenate([pad(c) for c in (*x, *v)])
+    colours = jnp.asarray(np.pad(COLOURS.ravel(), (0, padded_size(COLOURS.size) - COLOURS.size)))
+    out = _call(mesh, int(substeps), int(k), int(m), bool(interpret), int(num_warps))(
+        scal, colours, xv, pad(inv_mass), pad(holder, -1), jnp.concatenate([pad(c) for c in offset]),
+        rows(tether_to, -1), rows(tether_length), rows(neighbours, -1), rows(share))[0]
+    parts = tuple(out[a * n_pad:a * n_pad + n] for a in range(6))
+    return parts[:3], parts[3:]

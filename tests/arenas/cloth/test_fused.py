@@ -1,0 +1,67 @@
+"""The fused substep kernel (Pallas; interpreted on the CPU) against the jax.numpy solver on the same states."""
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jarena.arenas.cloth import fused
+from jarena.arenas.cloth.mesh import ClothMesh
+from jarena.arenas.cloth.physics import ClothPhysics
+
+MESH = ClothMesh(rows=7, cols=9, spacing=0.02)  # rectangular, and 63 particles pad to 64
+
+
+def _crumpled(physics, key):
+    """A cloth dropped in a heap onto itself (close pairs across layers), with a picker closing on it."""
+    rest = physics.mesh.rest_positions
+    fold = np.where(rest[:, 0] > 0, 1.0, 0.0)[:, None]  # the right half laid back over the left, 1.2 cm up
+    x = rest.copy()
+    x[:, 0] = np.where(fold[:, 0] > 0, -rest[:, 0], rest[:, 0])
+    x[:, 2] = 0.008 + 0.012 * fold[:, 0]
+    x = jnp.asarray(x) + 0.002 * jax.random.normal(key, x.shape)
+    state = physics.state_from_positions(x)
+    return state.replace(velocities=0.05 * jax.random.normal(jax.random.fold_in(key, 1), x.shape),
+                         picker_positions=jnp.tile(x[physics.mesh.index(3, 6)] + jnp.array([0, 0, 0.005]),
+                                                   (physics.num_pickers, 1)))
+
+
+@pytest.mark.parametrize("pickers", [1, 2])
+def test_the_fused_kernel_matches_the_jax_numpy_solver(pickers):
+    xla = ClothPhysics(MESH, num_pickers=pickers, solver="xla", substeps=4)
+    kernel = dataclasses.replace(xla, solver="fused")
+    params = xla.default_params()
+    state = _crumpled(xla, jax.random.key(pickers))
+    grasp = jnp.tile(jnp.array([[0.0, 0.0, 0.0, 1.0]]), (pickers, 1))
+    lift = jnp.tile(jnp.array([[0.01, -0.005, 0.02, 1.0]]), (pickers, 1))
+    a, b = state, state
+    for control in (grasp, lift, lift):
+        a, b = jax.jit(xla.step)(a, control, params), jax.jit(kernel.step)(b, control, params)
+        assert bool(a.grasped.any())
+        np.testing.assert_allclose(np.asarray(b.positions), np.asarray(a.positions), atol=2e-6)
+        np.testing.assert_allclose(np.asarray(b.velocities), np.asarray(a.velocities), atol=2e-3)
+    assert float(jnp.abs(a.positions - state.positions).max()) > 0.01  # it moved: the comparison means something
+
+
+def test_the_fused_kernel_runs_batched_and_every_cloth_alone_gives_the_same():
+    physics = ClothPhysics(MESH, solver="fused", substeps=2)
+    params = physics.default_params()
+    states = jax.vmap(lambda k: _crumpled(physics, k))(jax.random.split(jax.random.key(0), 3))
+    control = jnp.array([[0.0, 0.0, 0.01, 1.0]])
+    many = jax.jit(jax.vmap(physics.step, in_axes=(0, None, None)))(states, control, params)
+    for i in range(3):
+        one = jax.jit(physics.step)(jax.tree_util.tree_map(lambda x: x[i], states), control, params)
+        # (interpreted on the CPU, XLA may round the last bit differently for another batch size; on a GPU each
+        # cloth is one program of the same code, whatever the batch)
+        np.testing.assert_allclose(np.asarray(many.positions[i]), np.asarray(one.positions), atol=1e-6)
+
+
+def test_a_cloth_solver_must_be_known():
+    with pytest.raises(ValueError, match="unknown cloth solver 'cuda'; valid: auto, xla, fused"):
+        ClothPhysics(MESH, solver="cuda")
+
+
+def test_kernel_programs_have_power_of_two_sizes():
+    assert [fused.padded_size(n) for n in (63, 64, 65, 1600, 4096)] == [64, 64, 128, 2048, 4096]
