@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 _PRIMES = (73856093, 19349663, 83492791)
 
@@ -23,6 +24,20 @@ RELAXATION = 1.5
 
 Vec = tuple[jax.Array, ...]
 """A vector field over the particles as its per-coordinate (N,) arrays (see :func:`components`)."""
+
+
+REACH = (1.0, 0.75, 0.5, 0.35, 0.25)
+"""Fractions of the squared search radius a particle's reach may take (see :func:`neighbour_list`)."""
+
+
+def reach_of(counts: list[jax.Array], r2: jax.Array, max_neighbours: int) -> jax.Array:
+    """float32 (N,): each particle's squared reach, ``r2`` times the largest of :data:`REACH` whose count of
+    particles within (``counts``, one (N,) int array per entry of :data:`REACH`) is at most ``max_neighbours``,
+    else the smallest."""
+    reach = r2 * REACH[-1] + jnp.zeros(counts[0].shape, jnp.float32)
+    for f, count in reversed(list(zip(REACH, counts, strict=True))):
+        reach = jnp.where(count <= max_neighbours, r2 * f, reach)
+    return reach
 
 
 def dot(a: jax.Array, b: jax.Array) -> jax.Array:
@@ -88,16 +103,46 @@ def components(x: jax.Array) -> tuple[jax.Array, ...]:
     return tuple(x[:, a] for a in range(x.shape[1]))
 
 
+OFFSETS = np.stack(np.meshgrid(*([np.arange(-1, 2, dtype=np.int32)] * 3), indexing="ij"), -1).reshape(27, 3)
+"""The 3 x 3 x 3 cells around a cell, in the order a particle reads them."""
+
+
+def num_buckets(n: int) -> int:
+    """Hash buckets for ``n`` particles: a power of 2, at least 2 n."""
+    return 1 << max(4, (2 * n - 1).bit_length())
+
+
+def sorted_cells(x: jax.Array, radius: jax.Array):
+    """Particles sorted by the hashed cubic cell of side ``radius`` they lie in.
+
+    Returns:
+      cell: int32 (N, 3) cell coordinates; order: int32 (N,) particles by bucket (stable); start: int32
+      (buckets,) first place of each bucket in ``order`` (N if empty); count: int32 (buckets,) particles in it.
+    """
+    n = x.shape[0]
+    buckets = num_buckets(n)
+    cell = jnp.floor(x / radius).astype(jnp.int32)
+    key = _hash(cell, buckets)
+    order = jnp.argsort(key).astype(jnp.int32)
+    start = jnp.full((buckets,), n, jnp.int32).at[key[order]].min(jnp.arange(n, dtype=jnp.int32))
+    count = jnp.zeros((buckets,), jnp.int32).at[key].add(1)
+    return cell, order, start, count
+
+
 def neighbour_list(x: jax.Array, radius: jax.Array, excluded, *, candidates: int = 192,
                    max_neighbours: int = 16) -> tuple[jax.Array, jax.Array]:
-    """The nearest other particles of each particle within ``radius``, and how many the search missed.
+    """The close pairs of each particle: other particles within ``radius``, at most ``max_neighbours``.
 
     Particles are hashed into cubic cells of side ``radius`` and sorted by cell; each particle reads the
     particles of the 3 x 3 x 3 cells around its own (any particle within ``radius`` lies in them), the
-    cells' ranges of the sorted order laid end to end into ``candidates`` slots, and keeps its
-    ``max_neighbours`` nearest non-excluded ones within ``radius``. Only mutual pairs are kept: a pair one
-    particle lists and the other does not (it has ``max_neighbours`` nearer ones, or its slots ran out)
-    would push one and not the other, a net force that makes a resting pile crawl.
+    cells' ranges of the sorted order laid end to end into ``candidates`` slots. A pair is listed if its
+    distance is under both particles' reach, and each particle lists its pairs in the order read. A
+    particle's reach is ``radius`` times the largest of :data:`REACH` with at most ``max_neighbours``
+    particles within it (the smallest if none: the pairs past its slots are then counted in ``overflow``).
+    Where at most ``max_neighbours`` particles lie within ``radius`` (any cloth but a deep pile) the list
+    holds every pair within ``radius``; in a pile it keeps the nearest ones. Every pair is listed by both
+    of its particles or by neither: a pair listed by one only would push one and not the other, a net force
+    that makes a resting pile crawl.
 
     Args:
       x: float32 (N, 3) positions, metres.
@@ -109,17 +154,14 @@ def neighbour_list(x: jax.Array, radius: jax.Array, excluded, *, candidates: int
 
     Returns:
       int32 (N, max_neighbours) neighbour indices (-1: none; every pair listed by both its particles), and
-      int32 scalar ``overflow``: the particles the slots could not hold, summed over particles (0 unless
-      the cloth is piled deeper than ``candidates`` allows; missed pairs go unchecked, so this is reported).
+      int32 scalar ``overflow``: particles the candidate slots could not hold plus pairs past a particle's
+      list, summed over particles (0 unless the cloth is piled deep; missed pairs go unchecked, so this is
+      reported).
     """
     n = x.shape[0]
-    buckets = 1 << max(4, (2 * n - 1).bit_length())
-    cell = jnp.floor(x / radius).astype(jnp.int32)
-    key = _hash(cell, buckets)
-    order = jnp.argsort(key).astype(jnp.int32)
-    start = jnp.full((buckets,), n, jnp.int32).at[key[order]].min(jnp.arange(n, dtype=jnp.int32))
-    count = jnp.zeros((buckets,), jnp.int32).at[key].add(1)
-    offsets = jnp.stack(jnp.meshgrid(*([jnp.arange(-1, 2, dtype=jnp.int32)] * 3), indexing="ij"), -1).reshape(27, 3)
+    cell, order, start, count = sorted_cells(x, radius)
+    buckets = start.shape[0]
+    offsets = jnp.asarray(OFFSETS)
     block = cell[:, None, :] + offsets[None]  # (N, 27, 3)
     bucket = _hash(block, buckets)  # (N, 27)
     # the 27 buckets' ranges of the sorted order, end to end: slot k reads bucket c(k) at k - before[c(k)]
@@ -145,14 +187,24 @@ def neighbour_list(x: jax.Array, radius: jax.Array, excluded, *, candidates: int
     for c in components(x):
         d = c[order][index] - c[:, None]
         d2 = d * d if d2 is None else d2 + d * d
-    valid &= d2 < radius * radius
-    score = jnp.where(valid, -d2, -jnp.inf)
-    best, pick = jax.lax.top_k(score, max_neighbours)
+    r2 = radius * radius
+    valid &= d2 < r2
+    reach = reach_of([jnp.sum(valid & (d2 < r2 * f), axis=1) for f in REACH], r2, max_neighbours)
+    listed = valid & (d2 < jnp.minimum(reach[:, None], reach[order][index]))
+    order_read = jnp.where(listed, -slot[None].astype(jnp.float32), -jnp.inf)  # the first listed, in order read
+    best, pick = jax.lax.top_k(order_read, max_neighbours)
     chosen = jnp.where(jnp.isfinite(best), jnp.take_along_axis(candidate, pick, axis=1), -1)
-    back = jnp.take(chosen, jnp.maximum(chosen, 0), axis=0)  # (N, M, M): my neighbours' lists
-    chosen = jnp.where(jnp.any(back == me[:, :, None], axis=-1), chosen, -1)
-    overflow = jnp.sum(jnp.maximum(ends[:, -1] - candidates, 0))
+    chosen = mutual(chosen)  # where slots ran out (overflow), a pair may be listed by one particle only
+    overflow = jnp.sum(jnp.maximum(ends[:, -1] - candidates, 0)) + jnp.sum(
+        jnp.maximum(jnp.sum(listed, axis=1) - max_neighbours, 0))
     return chosen, overflow
+
+
+def mutual(neighbours: jax.Array) -> jax.Array:
+    """``neighbours`` (N, M) without the pairs that only one of their particles lists (set to -1)."""
+    me = jnp.arange(neighbours.shape[0], dtype=jnp.int32)[:, None, None]
+    back = jnp.take(neighbours, jnp.maximum(neighbours, 0), axis=0)  # (N, M, M): my neighbours' lists
+    return jnp.where(jnp.any(back == me, axis=-1), neighbours, -1)
 
 
 def pair_shares(inv_mass: jax.Array, neighbours: jax.Array) -> jax.Array:

@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.experimental import pallas as pl
 
+from jarena.arenas.cloth import collision
 from jarena.arenas.cloth.collision import RELAXATION
 from jarena.arenas.cloth.mesh import ClothMesh
 
@@ -206,18 +207,145 @@ def _no_barrier():
     pass
 
 
+def _hash(cell, buckets: int):
+    """:func:`.collision._hash` of three int32 arrays."""
+    c = [v.astype(jnp.uint32) for v in cell]
+    h = c[0] * jnp.uint32(collision._PRIMES[0])
+    h = h ^ (c[1] * jnp.uint32(collision._PRIMES[1])) ^ (c[2] * jnp.uint32(collision._PRIMES[2]))
+    return (h & jnp.uint32(buckets - 1)).astype(jnp.int32)
+
+
+def _pack(cell):
+    """:func:`.collision._pack` of three int32 arrays."""
+    c = [v & 1023 for v in cell]
+    return c[0] | (c[1] << 10) | (c[2] << 20)
+
+
+def _list_kernel(radius_ref, offsets_ref, x_ref, cell_ref, order_ref, sorted_cell_ref, start_ref, count_ref,
+                 out_ref, reach_s, overflow_ref, *,
+                 mesh: ClothMesh, n_pad: int, buckets: int, max_neighbours: int, barrier):
+    """:func:`.collision.neighbour_list` for one cloth, without its candidate slots (every candidate is read)."""
+    rows, cols = mesh.rows, mesh.cols
+    n, m = rows * cols, max_neighbours
+    p = jax.lax.broadcasted_iota(jnp.int32, (n_pad,), 0)
+    i, j = p // cols, p % cols
+    inside = p < n
+    radius = radius_ref[0]
+    r2 = radius * radius
+    x = [x_ref[a * n_pad:(a + 1) * n_pad] for a in range(3)]
+    cell = [cell_ref[a * n_pad:(a + 1) * n_pad] for a in range(3)]  # the cells the particles were sorted by
+
+    def scan(visit, carry):
+        """``visit(carry, q, d2, valid)`` for every candidate ``q`` of the 27 cells, in the order read."""
+        def per_cell(o, carry):
+            block = [cell[a] + offsets_ref[3 * o + a] for a in range(3)]
+            bucket = _hash(block, buckets)
+            first = start_ref[bucket]
+            count = jnp.where(inside, count_ref[bucket], 0)
+            key = _pack(block)
+
+            def per_candidate(t, carry):
+                place = jnp.clip(first + t, 0, n - 1)
+                q = order_ref[place]
+                xq = [x_ref[q + a * n_pad] for a in range(3)]
+                same = sorted_cell_ref[place] == key  # q lies in the cell queried (not a hash collision)
+                qi = jax.lax.div(q, jnp.int32(cols))  # q >= 0
+                adjacent = (jnp.abs(qi - i) <= 1) & (jnp.abs(q - qi * cols - j) <= 1)
+                d = [u - v for u, v in zip(xq, x, strict=True)]
+                d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+                return visit(carry, q, d2, (t < count) & same & ~adjacent & (d2 < r2))
+
+            return jax.lax.fori_loop(0, jnp.max(count), per_candidate, carry)
+
+        return jax.lax.fori_loop(0, 27, per_cell, carry)
+
+    def count_within(counts, q, d2, valid):
+        return tuple(c + (valid & (d2 < r2 * f)).astype(jnp.int32) for c, f in zip(counts, collision.REACH,
+                                                                                   strict=True))
+
+    counts = scan(count_within, tuple(jnp.zeros((n_pad,), jnp.int32) for _ in collision.REACH))
+    reach = collision.reach_of(list(counts), r2, m)
+    reach_s[...] = reach
+    for k in range(m + 1):
+        out_ref[k * n_pad:(k + 1) * n_pad] = jnp.full((n_pad,), -1, jnp.int32)
+    barrier()
+
+    def write(listed_count, q, d2, valid):
+        listed = valid & (d2 < jnp.minimum(reach, reach_s[q]))
+        slot = jnp.where(listed & (listed_count < m), listed_count, m)  # row m: a row nobody reads
+        out_ref[slot * n_pad + p] = q
+        return listed_count + listed.astype(jnp.int32)
+
+    listed_count = scan(write, jnp.zeros((n_pad,), jnp.int32))
+    overflow = jnp.maximum(listed_count - m, 0)
+    overflow_ref[...] = overflow
+
+    def drop_one_sided():
+        # where a particle's slots ran out, a pair may be listed by one of its particles only: unlist it
+        barrier()
+        keep = []
+        for k in range(m):
+            q = out_ref[k * n_pad + p]
+            back = jnp.zeros((n_pad,), jnp.bool_)
+            for k2 in range(m):
+                back = back | (out_ref[k2 * n_pad + jnp.maximum(q, 0)] == p)
+            keep.append(back)
+        barrier()
+        for k in range(m):
+            row = out_ref[k * n_pad:(k + 1) * n_pad]
+            out_ref[k * n_pad:(k + 1) * n_pad] = jnp.where(keep[k], row, -1)
+
+    jax.lax.cond(jnp.max(overflow) > 0, drop_one_sided, lambda: None)
+
+
+@functools.cache
+def _list_call(mesh: ClothMesh, max_neighbours: int, interpret: bool, num_warps: int):
+    n_pad = padded_size(mesh.num_particles)
+    barrier, extra = _backend(interpret, num_warps)
+    kernel = functools.partial(_list_kernel, mesh=mesh, n_pad=n_pad, buckets=collision.num_buckets(
+        mesh.num_particles), max_neighbours=max_neighbours, barrier=barrier)
+    return pl.pallas_call(kernel, out_shape=(jax.ShapeDtypeStruct(((max_neighbours + 1) * n_pad,), jnp.int32),
+                                             jax.ShapeDtypeStruct((n_pad,), jnp.float32),
+                                             jax.ShapeDtypeStruct((n_pad,), jnp.int32)), **extra)
+
+
+def neighbour_list(mesh: ClothMesh, x: jax.Array, radius: jax.Array, *, max_neighbours: int = 16,
+                   interpret: bool | None = None, num_warps: int = 8) -> tuple[jax.Array, jax.Array]:
+    """:func:`.collision.neighbour_list` of one cloth's positions ``x`` (N, 3), grid neighbours excluded, as a
+    kernel: the same pairs in the same order wherever the jax.numpy list's ``candidates`` slots suffice (this
+    one reads every candidate). Returns int32 (N, max_neighbours) and the int32 overflow (listed pairs past a
+    particle's slots)."""
+    n, n_pad = mesh.num_particles, padded_size(mesh.num_particles)
+    if interpret is None:
+        interpret = jax.default_backend() != "gpu"
+    radius = jnp.asarray(radius, jnp.float32)
+    cell, order, start, count = collision.sorted_cells(x, radius)
+
+    def rows(a):
+        return jnp.concatenate([jnp.pad(a[:, c], (0, n_pad - n)) for c in range(a.shape[1])])
+
+    out, _, overflow = _list_call(mesh, int(max_neighbours), bool(interpret), int(num_warps))(
+        jnp.pad(radius[None], (0, 15)), jnp.asarray(np.pad(collision.OFFSETS.ravel(), (0, 128 - 81))),
+        rows(x), rows(cell), jnp.pad(order, (0, n_pad - n)),
+        jnp.pad(collision._pack(cell)[order], (0, n_pad - n)), start, count)
+    neighbours = out[:max_neighbours * n_pad].reshape(max_neighbours, n_pad)[:, :n].T
+    return neighbours, jnp.sum(overflow)
+
+
+def _backend(interpret: bool, num_warps: int):
+    """``(barrier, pallas_call keywords)`` for the interpreter or the GPU."""
+    if interpret:
+        return _no_barrier, {"interpret": True}
+    from jax.experimental.pallas import triton as plgpu
+
+    return plgpu.debug_barrier, {"compiler_params": plgpu.CompilerParams(num_warps=num_warps, num_stages=1)}
+
+
 @functools.cache
 def _call(mesh: ClothMesh, substeps: int, num_pickers: int, max_neighbours: int, interpret: bool,
           num_warps: int):
     n_pad = padded_size(mesh.num_particles)
-    if interpret:
-        barrier = _no_barrier
-        extra = {"interpret": True}
-    else:
-        from jax.experimental.pallas import triton as plgpu
-
-        barrier = plgpu.debug_barrier
-        extra = {"compiler_params": plgpu.CompilerParams(num_warps=num_warps, num_stages=1)}
+    barrier, extra = _backend(interpret, num_warps)
     kernel = functools.partial(_kernel, mesh=mesh, n_pad=n_pad, substeps=int(substeps), num_pickers=num_pickers,
                                max_neighbours=max_neighbours, barrier=barrier)
     f32 = jnp.float32

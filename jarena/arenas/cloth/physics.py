@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
@@ -208,8 +209,8 @@ class ClothPhysics:
         offset = tuple(jnp.zeros((n,), jnp.float32).at[flat_held].set(offsets[..., a].ravel(), mode="drop")
                        for a in range(3))
         h = self.dt / self.substeps
-        neighbours, overflow = collision.neighbour_list(state.positions, 2.0 * params.self_collision_distance,
-                                                        self._adjacent)
+        solver = SOLVERS[self.resolve_solver()]
+        neighbours, overflow = solver.neighbours(self.mesh, state.positions, 2.0 * params.self_collision_distance)
         share = collision.pair_shares(inv_mass, neighbours)
         # tethers: each free particle to the nearest (on the flat cloth) particle each picker holds
         rest = self._rest_distance(jnp.arange(n)[:, None, None], jnp.maximum(held, 0)[None])  # (N, K, G)
@@ -222,7 +223,7 @@ class ClothPhysics:
             params.stretch_compliance / (h * h), params.shear_compliance / (h * h), params.bend_compliance / (h * h),
             jnp.exp(-params.damping * h), -params.gravity * h, jnp.float32(h), params.particle_radius,
             params.friction, params.self_collision_distance, params.self_friction)])
-        x, v = SOLVERS[self.resolve_solver()](
+        x, v = solver.substeps(
             self.mesh, self.substeps, collision.components(state.positions), collision.components(state.velocities),
             inv_mass, holder, offset, start, end, tether_to, tether_length, neighbours, share, scalars)
         return ClothState(positions=jnp.stack(x, axis=-1), velocities=jnp.stack(v, axis=-1), picker_positions=end,
@@ -266,10 +267,6 @@ class ClothPhysics:
         di, dj = (i // cols - j // cols).astype(jnp.float32), (i % cols - j % cols).astype(jnp.float32)
         return jnp.sqrt(di * di + dj * dj) * self.mesh.spacing
 
-    def _adjacent(self, i: jax.Array, j: jax.Array) -> jax.Array:
-        """bool: particles ``i`` and ``j`` are grid neighbours (rows and columns at most one apart)."""
-        cols = self.mesh.cols
-        return (jnp.abs(i // cols - j // cols) <= 1) & (jnp.abs(i % cols - j % cols) <= 1)
 
 
 def _tether(x: Vec, inv_mass: jax.Array, to: jax.Array, length: jax.Array) -> Vec:
@@ -329,9 +326,29 @@ def substeps_xla(mesh: ClothMesh, substeps: int, x: Vec, v: Vec, inv_mass, holde
     return jax.lax.fori_loop(0, substeps, substep, (tuple(x), tuple(v)))
 
 
-SOLVERS = {"xla": substeps_xla, "fused": fused.run_substeps}
-"""How a control step's substeps run: ``xla`` (jax.numpy, any backend) or ``fused`` (one Pallas kernel per
-cloth, :mod:`.fused`; on a CPU it runs in Pallas' interpreter, for tests only)."""
+def neighbours_xla(mesh: ClothMesh, x: jax.Array, radius: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """:func:`.collision.neighbour_list` of a cloth's positions ``x`` (N, 3), grid neighbours excluded."""
+    cols = mesh.cols
+
+    def adjacent(i, j):
+        return (jnp.abs(i // cols - j // cols) <= 1) & (jnp.abs(i % cols - j % cols) <= 1)
+
+    return collision.neighbour_list(x, radius, adjacent)
+
+
+@dataclasses.dataclass(frozen=True)
+class Solver:
+    """How a control step runs: ``neighbours(mesh, x, radius) -> (int32 (N, M), overflow)``, the self-collision
+    pairs; ``substeps(mesh, substeps, x, v, ...) -> (x, v)``, the substeps (arguments as :func:`substeps_xla`)."""
+
+    neighbours: Callable
+    substeps: Callable
+
+
+SOLVERS = {"xla": Solver(neighbours_xla, substeps_xla), "fused": Solver(fused.neighbour_list, fused.run_substeps)}
+"""How a control step runs: ``xla`` (jax.numpy, any backend) or ``fused`` (Pallas kernels, one program per
+cloth, :mod:`.fused`: the neighbour search and the substeps; on a CPU they run in Pallas' interpreter, for
+tests only). Both compute the same pairs and the same arithmetic in the same order."""
 
 
 def _scatter_index(held: jax.Array, n: int) -> jax.Array:
