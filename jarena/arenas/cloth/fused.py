@@ -1,4 +1,4 @@
-"""The substeps of one cloth control step as one fused GPU kernel (Pallas, Triton backend).
+"""A cloth control step as two fused GPU kernels (Pallas, Triton backend): the neighbour search and the substeps.
 
 :meth:`.physics.ClothPhysics.step` prepares what is constant over a control step (grasp, neighbour list,
 tethers) and then runs ``substeps`` XPBD substeps. Written as jax.numpy, each substep is some forty XLA
@@ -12,6 +12,11 @@ self-collision read other particles' positions, so before each such read every t
 to a scratch array and waits at a barrier (``__syncthreads``), and waits again before the next store. Each
 particle finds its partner in a constraint colour from its own grid coordinates, and moves only itself, so
 no pass scatters.
+
+The neighbour search (:func:`neighbour_list`) takes the particles sorted by hashed cell from XLA; each program
+reads, for each of its particles, the 27 cells around it, counts the particles within each reach of
+:data:`.collision.REACH`, and lists the pairs under both particles' reach: the pairs of
+:func:`.collision.neighbour_list` in the same order, without its cap on candidates.
 
 On a CPU the kernel runs in Pallas' interpreter (for tests; slow), where barriers are not needed.
 """
