@@ -82,25 +82,26 @@ def fixed_matmul(a: jax.Array, b: jax.Array) -> jax.Array:
     return total
 
 
-def _hash(cells: jax.Array, buckets: int) -> jax.Array:
-    """int32 bucket in ``[0, buckets)`` of integer cell coordinates ``(..., 3)`` (buckets a power of 2)."""
-    c = cells.astype(jnp.uint32)
-    h = c[..., 0] * jnp.uint32(_PRIMES[0])
-    h = h ^ (c[..., 1] * jnp.uint32(_PRIMES[1])) ^ (c[..., 2] * jnp.uint32(_PRIMES[2]))
+def cell_hash(cell: Vec, buckets: int) -> jax.Array:
+    """int32 bucket in ``[0, buckets)`` of integer cell coordinates given as three int32 arrays (buckets a power
+    of 2). Plain integer arithmetic, so the jax.numpy list and the kernels of :mod:`.fused` share it."""
+    c = [v.astype(jnp.uint32) for v in cell]
+    h = c[0] * jnp.uint32(_PRIMES[0])
+    h = h ^ (c[1] * jnp.uint32(_PRIMES[1])) ^ (c[2] * jnp.uint32(_PRIMES[2]))
     return (h & jnp.uint32(buckets - 1)).astype(jnp.int32)
 
 
-def _pack(cells: jax.Array) -> jax.Array:
-    """int32 of integer cell coordinates ``(..., 3)``, 10 bits each: equal for cells 1024 apart along an axis
-    (over 10 m for any cloth here), whose particles the distance test then rejects."""
-    c = cells & 1023
-    return c[..., 0] | (c[..., 1] << 10) | (c[..., 2] << 20)
+def cell_key(cell: Vec) -> jax.Array:
+    """int32 of integer cell coordinates (three int32 arrays), 10 bits each: equal for cells 1024 apart along
+    an axis (over 10 m for any cloth here), whose particles the distance test then rejects."""
+    c = [v & 1023 for v in cell]
+    return c[0] | (c[1] << 10) | (c[2] << 20)
 
 
 def components(x: jax.Array) -> tuple[jax.Array, ...]:
-    """The columns of ``x`` (N, 3) as three (N,) arrays: gathers and sums over them run several times faster
-    on a GPU than over a trailing axis of 3 (same arithmetic, same results)."""
-    return tuple(x[:, a] for a in range(x.shape[1]))
+    """The last-axis entries of ``x`` (..., 3) as three (...) arrays: gathers and sums over them run several
+    times faster on a GPU than over a trailing axis of 3 (same arithmetic, same results)."""
+    return tuple(x[..., a] for a in range(x.shape[-1]))
 
 
 OFFSETS = np.stack(np.meshgrid(*([np.arange(-1, 2, dtype=np.int32)] * 3), indexing="ij"), -1).reshape(27, 3)
@@ -122,7 +123,7 @@ def sorted_cells(x: jax.Array, radius: jax.Array):
     n = x.shape[0]
     buckets = num_buckets(n)
     cell = jnp.floor(x / radius).astype(jnp.int32)
-    key = _hash(cell, buckets)
+    key = cell_hash(components(cell), buckets)
     order = jnp.argsort(key).astype(jnp.int32)
     start = jnp.full((buckets,), n, jnp.int32).at[key[order]].min(jnp.arange(n, dtype=jnp.int32))
     count = jnp.zeros((buckets,), jnp.int32).at[key].add(1)
@@ -163,7 +164,7 @@ def neighbour_list(x: jax.Array, radius: jax.Array, excluded, *, candidates: int
     buckets = start.shape[0]
     offsets = jnp.asarray(OFFSETS)
     block = cell[:, None, :] + offsets[None]  # (N, 27, 3)
-    bucket = _hash(block, buckets)  # (N, 27)
+    bucket = cell_hash(components(block), buckets)  # (N, 27)
     # the 27 buckets' ranges of the sorted order, end to end: slot k reads bucket c(k) at k - before[c(k)]
     sizes = count[bucket]
     ends = jnp.cumsum(sizes, axis=1)  # (N, 27)
@@ -179,8 +180,8 @@ def neighbour_list(x: jax.Array, radius: jax.Array, excluded, *, candidates: int
     # read of each candidate is read from copies in the sorted order at ``index`` (runs of neighbouring
     # memory) rather than at ``candidate`` (scattered): the same values, the whole list 14% faster for 1024
     # cloths on an H100
-    queried = jnp.take_along_axis(_pack(block), which, axis=1)
-    valid = filled & (_pack(cell)[order][index] == queried)
+    queried = jnp.take_along_axis(cell_key(components(block)), which, axis=1)
+    valid = filled & (cell_key(components(cell))[order][index] == queried)
     me = jnp.arange(n, dtype=jnp.int32)[:, None]
     valid &= (candidate != me) & ~excluded(jnp.broadcast_to(me, candidate.shape), candidate)
     d2 = None

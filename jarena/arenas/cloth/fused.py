@@ -46,13 +46,14 @@ def padded_size(n: int) -> int:
     return 1 << max(4, (int(n) - 1).bit_length())
 
 
-COLOURS = np.array([  # (di, dj, axis, div, colour, kind): the 12 colours of .physics._constraint_pairs, in order
+COLOURS = np.array([  # (di, dj, axis, div, colour, kind): the 12 constraint colours, in their order of solving
     (di, dj, axis, div, colour, kind)
     for di, dj, axis, div, kind in [(0, 1, 1, 1, 0), (1, 0, 0, 1, 0), (1, 1, 0, 1, 1), (1, -1, 0, 1, 1),
                                     (0, 2, 1, 2, 2), (2, 0, 0, 2, 2)]
     for colour in (0, 1)], np.int32)
 """Constraint colours: pair ``(i, j) - (i + di, j + dj)`` belongs to a colour if ``((i, j)[axis] // div) % 2 ==
-colour`` for its first particle; ``kind`` 0, 1, 2: stretch, shear, bend (:func:`.physics._constraint_pairs`)."""
+colour`` for its first particle; ``kind`` 0, 1, 2: stretch, shear, bend (:data:`KINDS`). Both solvers
+solve these (:func:`.physics._constraint_pairs` builds its pair masks from them)."""
 KINDS = ("stretch", "shear", "bend")
 
 
@@ -91,12 +92,6 @@ def _kernel(scal_ref, colours_ref, xv_ref, inv_mass_ref, holder_ref, offset_ref,
             x_s[a * n_pad:(a + 1) * n_pad] = x[a]
         barrier()
 
-    def dot(u, v):
-        total = u[0] * v[0]
-        for a, b in zip(u[1:], v[1:], strict=True):
-            total = total + a * b
-        return total
-
     def constraints(x):
         def colour_pass(c, x):
             di, dj, axis, div, colour, kind = (colours_ref[6 * c + f] for f in range(6))
@@ -114,7 +109,7 @@ def _kernel(scal_ref, colours_ref, xv_ref, inv_mass_ref, holder_ref, offset_ref,
             # the pair (a, b) is (p, q) for a first particle and (q, p) for a second one
             diff = [jnp.where(first, u - v, v - u) for u, v in zip(x, xq, strict=True)]
             wa, wb = jnp.where(first, w, wq), jnp.where(first, wq, w)
-            dist = jnp.sqrt(dot(diff, diff) + 1e-12)
+            dist = jnp.sqrt(collision.dot_list(diff, diff) + 1e-12)
             denom = wa + wb + alpha
             lam = jnp.where((first | second) & (denom > 0), -(dist - rest) / jnp.maximum(denom, 1e-12), 0.0)
             scale = lam / dist
@@ -130,7 +125,7 @@ def _kernel(scal_ref, colours_ref, xv_ref, inv_mass_ref, holder_ref, offset_ref,
             length = tether_len_ref[k * n_pad:(k + 1) * n_pad]
             anchor = jnp.maximum(to, 0)
             diff = [c - gather(x_s, anchor, a) for a, c in enumerate(x)]
-            dist = jnp.sqrt(dot(diff, diff) + 1e-12)
+            dist = jnp.sqrt(collision.dot_list(diff, diff) + 1e-12)
             over = jnp.where((to >= 0) & (w > 0), jnp.maximum(dist - length, 0.0), 0.0)
             x = [c - (over / dist) * d for c, d in zip(x, diff, strict=True)]
         return x
@@ -146,7 +141,7 @@ def _kernel(scal_ref, colours_ref, xv_ref, inv_mass_ref, holder_ref, offset_ref,
             nb = slot(neighbours_ref, k)
             jj = jnp.maximum(nb, 0)
             diff = [c - gather(x_s, jj, a) for a, c in enumerate(x)]
-            dist = jnp.sqrt(dot(diff, diff) + 1e-12)
+            dist = jnp.sqrt(collision.dot_list(diff, diff) + 1e-12)
             return touching + jnp.where((nb >= 0) & (dist < distance), 1.0, 0.0)
 
         touching = jax.lax.fori_loop(0, max_neighbours, count, jnp.zeros((n_pad,), jnp.float32))
@@ -159,13 +154,13 @@ def _kernel(scal_ref, colours_ref, xv_ref, inv_mass_ref, holder_ref, offset_ref,
             jj = jnp.maximum(nb, 0)
             xj = [gather(x_s, jj, a) for a in range(3)]
             diff = [c - u for c, u in zip(x, xj, strict=True)]
-            dist = jnp.sqrt(dot(diff, diff) + 1e-12)
+            dist = jnp.sqrt(collision.dot_list(diff, diff) + 1e-12)
             normal = [d / dist for d in diff]
             depth = jnp.where((nb >= 0) & (dist < distance), distance - dist, 0.0)
             motion = [m - (u - gather(prev_s, jj, a)) for a, (m, u) in enumerate(zip(moved, xj, strict=True))]
-            along = dot(motion, normal)
+            along = collision.dot_list(motion, normal)
             tangential = [m - along * nn for m, nn in zip(motion, normal, strict=True)]
-            slide = jnp.sqrt(dot(tangential, tangential) + 1e-12)
+            slide = jnp.sqrt(collision.dot_list(tangential, tangential) + 1e-12)
             grip = jnp.where(depth > 0, jnp.minimum(1.0, friction * depth / slide), 0.0)
             crowd = jnp.maximum(touching, touch_s[jj])
             s = slot(share_ref, k) * jnp.minimum(1.0, RELAXATION / jnp.maximum(crowd, 1.0))
@@ -179,7 +174,7 @@ def _kernel(scal_ref, colours_ref, xv_ref, inv_mass_ref, holder_ref, offset_ref,
     def floor(x, x_prev):
         depth = jnp.maximum(scalar["particle_radius"] - x[2], 0.0) * w
         tangential = [c - q for c, q in zip(x[:2], x_prev[:2], strict=True)]
-        speed = jnp.sqrt(dot(tangential, tangential))
+        speed = jnp.sqrt(collision.dot_list(tangential, tangential))
         scale = jnp.clip(1.0 - scalar["friction"] * depth / jnp.maximum(speed, 1e-12), 0.0, 1.0)
         xy = [jnp.where(depth > 0, q + t * scale, c) for c, q, t in zip(x[:2], x_prev[:2], tangential, strict=True)]
         return [*xy, x[2] + depth]
@@ -212,20 +207,6 @@ def _no_barrier():
     pass
 
 
-def _hash(cell, buckets: int):
-    """:func:`.collision._hash` of three int32 arrays."""
-    c = [v.astype(jnp.uint32) for v in cell]
-    h = c[0] * jnp.uint32(collision._PRIMES[0])
-    h = h ^ (c[1] * jnp.uint32(collision._PRIMES[1])) ^ (c[2] * jnp.uint32(collision._PRIMES[2]))
-    return (h & jnp.uint32(buckets - 1)).astype(jnp.int32)
-
-
-def _pack(cell):
-    """:func:`.collision._pack` of three int32 arrays."""
-    c = [v & 1023 for v in cell]
-    return c[0] | (c[1] << 10) | (c[2] << 20)
-
-
 def _list_kernel(radius_ref, offsets_ref, x_ref, cell_ref, order_ref, sorted_cell_ref, start_ref, count_ref,
                  out_ref, reach_s, overflow_ref, *,
                  mesh: ClothMesh, n_pad: int, buckets: int, max_neighbours: int, barrier):
@@ -244,10 +225,10 @@ def _list_kernel(radius_ref, offsets_ref, x_ref, cell_ref, order_ref, sorted_cel
         """``visit(carry, q, d2, valid)`` for every candidate ``q`` of the 27 cells, in the order read."""
         def per_cell(o, carry):
             block = [cell[a] + offsets_ref[3 * o + a] for a in range(3)]
-            bucket = _hash(block, buckets)
+            bucket = collision.cell_hash(block, buckets)
             first = start_ref[bucket]
             count = jnp.where(inside, count_ref[bucket], 0)
-            key = _pack(block)
+            key = collision.cell_key(block)
 
             def per_candidate(t, carry):
                 place = jnp.clip(first + t, 0, n - 1)
@@ -257,7 +238,7 @@ def _list_kernel(radius_ref, offsets_ref, x_ref, cell_ref, order_ref, sorted_cel
                 qi = jax.lax.div(q, jnp.int32(cols))  # q >= 0
                 adjacent = (jnp.abs(qi - i) <= 1) & (jnp.abs(q - qi * cols - j) <= 1)
                 d = [u - v for u, v in zip(xq, x, strict=True)]
-                d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+                d2 = collision.dot_list(d, d)
                 return visit(carry, q, d2, (t < count) & same & ~adjacent & (d2 < r2))
 
             return jax.lax.fori_loop(0, jnp.max(count), per_candidate, carry)
@@ -332,7 +313,7 @@ def neighbour_list(mesh: ClothMesh, x: jax.Array, radius: jax.Array, *, max_neig
     out, _, overflow = _list_call(mesh, int(max_neighbours), bool(interpret), int(num_warps))(
         jnp.pad(radius[None], (0, 15)), jnp.asarray(np.pad(collision.OFFSETS.ravel(), (0, 128 - 81))),
         rows(x), rows(cell), jnp.pad(order, (0, n_pad - n)),
-        jnp.pad(collision._pack(cell)[order], (0, n_pad - n)), start, count)
+        jnp.pad(collision.cell_key(collision.components(cell))[order], (0, n_pad - n)), start, count)
     neighbours = out[:max_neighbours * n_pad].reshape(max_neighbours, n_pad)[:, :n].T
     return neighbours, jnp.sum(overflow)
 

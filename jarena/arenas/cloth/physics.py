@@ -372,18 +372,15 @@ class _Pairs:
 
 @functools.cache
 def _constraint_pairs(rows: int, cols: int) -> tuple[_Pairs, ...]:
-    """The 12 colours: stretch along rows and columns, both shear diagonals, bending along rows and columns."""
+    """The 12 colours of :data:`.fused.COLOURS`: stretch along rows and columns, both shear diagonals, bending
+    along rows and columns."""
     out = []
-    for kind, di, dj, colour_of in [
-        ("stretch", 0, 1, lambda i, j: j % 2), ("stretch", 1, 0, lambda i, j: i % 2),
-        ("shear", 1, 1, lambda i, j: i % 2), ("shear", 1, -1, lambda i, j: i % 2),
-        ("bend", 0, 2, lambda i, j: (j // 2) % 2), ("bend", 2, 0, lambda i, j: (i // 2) % 2),
-    ]:
+    for di, dj, axis, div, colour, kind in fused.COLOURS.tolist():
         i, j = np.meshgrid(np.arange(rows - di), np.arange(cols - abs(dj)), indexing="ij")
         if dj < 0:
             j = j + 1  # first particle (i, j), second (i + 1, j - 1)
-        for colour in (0, 1):
-            out.append(_Pairs(kind, di, dj, float(np.hypot(di, dj)), colour_of(i, j) == colour))
+        along = (i, j)[axis]
+        out.append(_Pairs(fused.KINDS[kind], di, dj, float(np.hypot(di, dj)), (along // div) % 2 == colour))
     return tuple(out)
 
 
