@@ -80,3 +80,12 @@ def test_the_kernel_lists_the_pairs_the_jax_numpy_list_does(size):
     d = np.linalg.norm(np.asarray(x)[:, None] - np.asarray(x)[None], axis=-1)
     assert all(d[i, q] < 0.016 for i, q in listed)
     assert (int(overflow) > 0) == (size < 0.03)
+
+
+def test_the_arena_string_names_the_valid_solvers():
+    import jarena
+    from jarena.building import ArenaStringError
+
+    with pytest.raises(ArenaStringError, match="unknown cloth solver 'cuda'; valid choices: auto, xla, fused"):
+        jarena.build_arena("cloth|solver:cuda")
+    assert jarena.build_arena("cloth|solver:xla").dynamics.step.__self__.resolve_solver() == "xla"
