@@ -67,13 +67,14 @@ def test_kernel_programs_have_power_of_two_sizes():
     assert [fused.padded_size(n) for n in (63, 64, 65, 1600, 4096)] == [64, 64, 128, 2048, 4096]
 
 
-@pytest.mark.parametrize("size", [0.05, 0.02])  # a loose heap, and one piled past the slots (overflow)
-def test_the_kernel_lists_the_pairs_the_jax_numpy_list_does(size):
+# a loose heap, one piled past the list's slots (overflow), and one with more candidates than the kernel keeps
+@pytest.mark.parametrize("size, kept", [(0.05, 64), (0.02, 64), (0.02, 4)])
+def test_the_kernel_lists_the_pairs_the_jax_numpy_list_does(size, kept):
     mesh = ClothMesh(rows=10, cols=12, spacing=0.01)
     x = jnp.asarray(np.random.default_rng(0).uniform(0, size, (mesh.num_particles, 3)).astype(np.float32))
     radius = jnp.float32(0.016)
     expect, _ = neighbours_xla(mesh, x, radius)
-    found, overflow = jax.jit(lambda x: fused.neighbour_list(mesh, x, radius))(x)
+    found, overflow = jax.jit(lambda x: fused.neighbour_list(mesh, x, radius, slots=kept))(x)
     np.testing.assert_array_equal(np.asarray(found), np.asarray(expect))  # the same pairs, in the same order
     listed = {(i, int(q)) for i, row in enumerate(np.asarray(found)) for q in row if q >= 0}
     assert listed and all((q, i) in listed for i, q in listed)  # every pair listed by both its particles
