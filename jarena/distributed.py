@@ -177,6 +177,28 @@ def batch_shardings(tree: PyTree, mesh: Mesh, batch_size: int | None) -> PyTree:
     return jax.tree_util.tree_map(rule, tree)
 
 
+def split_batch(tree: PyTree) -> PyTree:
+    """``tree`` with each array's leading axis split along ``"data"`` of the mesh the program is traced under
+    (:func:`tracing_on`); unchanged without such a mesh, and for arrays the axis does not divide evenly.
+
+    For per-example work a trainer draws itself rather than reading from the arena batch, such as a minibatch
+    sampled from a replicated dataset (``bc``): marked so, each device computes the loss of its share and XLA
+    sums the gradients across devices, where unmarked every device would compute the whole minibatch. Which
+    arrays are split changes only speed, never results (up to the order of float sums).
+    """
+    mesh = jax.sharding.get_abstract_mesh()
+    if mesh.empty or AXIS not in mesh.axis_names or mesh.shape[AXIS] < 2:
+        return tree
+    count = mesh.shape[AXIS]
+
+    def split(x):
+        if getattr(x, "ndim", 0) >= 1 and x.shape[0] % count == 0:
+            return jax.lax.with_sharding_constraint(x, PartitionSpec(AXIS))
+        return x
+
+    return jax.tree_util.tree_map(split, tree)
+
+
 def fetch(tree: PyTree) -> PyTree:
     """Host (numpy) copies of ``tree``'s arrays (PRNG keys: keys on the default device); a sharded array spanning
     other processes is gathered first (a collective: every process calls it alike)."""

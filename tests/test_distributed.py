@@ -4,6 +4,7 @@ evaluation, perform_parallel and collect -- and a stopped multi-process run resu
 
 import json
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -178,6 +179,52 @@ def test_a_sharded_rollout_steps_each_devices_arenas_without_cross_device_traffi
                JAX_PLATFORMS="cpu")
     output = _run_all([[sys.executable, "-c", SHARDED_ROLLOUT]], env)[0]
     assert "ALL-REDUCES 0" in output, output[-2000:]
+
+
+BC_ON_A_MESH = """
+import re, sys, jax, numpy as np
+import jarena, jarena_agents
+from jarena import distributed
+from jarena.data import TrajectoryDataset, configs_for
+from jarena.training import _compiled_training, train_and_evaluate
+arena = jarena.build_arena("classic|domain:cartpole,task:balance")
+oracle = jarena_agents.build_agent("oracle_cartpole", jarena.retrieve_config("oracle_cartpole", arena))
+with TrajectoryDataset(sys.argv[1], "w", **configs_for(arena)) as dataset:
+    jarena.collect(oracle, arena, dataset, 4, key=jax.random.key(1), progress=False)
+agent = jarena_agents.build_agent("bc", {"dataset": sys.argv[1], "hidden": (16, 16), "batch_size": 32,
+                                         "total_steps": 64})
+runs = {}
+for devices in ("1", "all"):
+    result = train_and_evaluate(agent, arena, jax.random.key(0), chunk_updates=16, validate_every=0, progress=False,
+                                devices=devices, eval_videos=0)
+    runs[devices] = (jax.tree_util.tree_leaves(distributed.fetch(result.train_state.params)),
+                     [h["loss"] for h in result.history])
+for a, b in zip(runs["1"][0], runs["all"][0], strict=True):
+    np.testing.assert_allclose(a, b, rtol=2e-4, atol=2e-5)
+np.testing.assert_allclose(runs["1"][1], runs["all"][1], rtol=2e-4, atol=2e-5)
+assert runs["1"][1][-1] < runs["1"][1][0]
+mesh = distributed.mesh("all")
+state, chunk = _compiled_training(agent, arena, jax.random.key(0), mesh)
+with distributed.tracing_on(mesh):
+    text = chunk.lower(state, arena, 2).compile().as_text()
+print("DEVICES", mesh.devices.size, "ALL-REDUCES", len(re.findall(r"all-reduce", text)))
+"""
+
+
+def test_bc_splits_its_minibatches_over_the_devices_and_trains_as_one_device(tmp_path):
+    # bc samples its minibatches from a replicated dataset: on a mesh each device computes the loss of its
+    # share and XLA sums the gradients (all-reduces; a replicated minibatch compiles to none), and the run's
+    # parameters and losses are one device's
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4 --xla_cpu_multi_thread_eigen=false",
+               JAX_PLATFORMS="cpu")
+    output = _run_all([[sys.executable, "-c", BC_ON_A_MESH, str(tmp_path / "demos")]], env)[0]
+    found = re.search(r"DEVICES 4 ALL-REDUCES (\d+)", output)
+    assert found and int(found.group(1)) > 0, output[-2000:]
+
+
+def test_split_batch_leaves_arrays_alone_without_a_mesh():
+    x = jax.numpy.arange(8.0)
+    assert distributed.split_batch({"x": x})["x"] is x
 
 
 def test_launch_checks_its_values():

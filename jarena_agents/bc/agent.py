@@ -58,6 +58,7 @@ import numpy as np
 import optax
 from flax import struct
 
+from jarena import distributed
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.spec import Box, Discrete, Spec
@@ -443,6 +444,8 @@ def make_bc(config=None) -> TrainableAgent:
         head, _ = network(spec)
         key, sample_key = jax.random.split(ts.key)
         observation, goal, actions = sample(ts.data, ts.lengths, sample_key, cfg.batch_size, cfg.chunk)
+        # trained on a mesh: each device computes the loss of its share of the minibatch
+        observation, goal, actions = distributed.split_batch((observation, goal, actions))
         if cfg.augment == "rotate90":
             key, turn_key = jax.random.split(key)
             images = networks.image_keys(spec)
