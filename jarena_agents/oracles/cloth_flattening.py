@@ -19,7 +19,8 @@ spirit of Agent-Arena's ``oracle-towel``), for the ``cloth`` arenas' pick-and-pl
 The lookahead plans with the arena it acts in, as the planners do: config ``arena`` (the arena string; the
 ``jarena`` command sets it) or ``make_cloth_flattening_oracle(config, arena=...)``. It simulates 33 actions
 per action taken. On 128 crumpled 40 x 40 eval episodes the lookahead reaches normalised coverage 0.9
-within 10 actions on 95% of them, the analytic pull alone on 37% (``benchmarks/RESULTS.md``).
+within 10 actions on 88% of them (95% under the earlier self-collision pair rule), the analytic pull alone on
+37% (``benchmarks/RESULTS.md``).
 
 Actions are in the frame of the arena's tool (pixels of the top-down camera or normalised world points),
 read from the tool's state; the default heights and camera of :mod:`jarena.arenas.cloth.tools` are assumed.
