@@ -177,6 +177,15 @@ def batch_shardings(tree: PyTree, mesh: Mesh, batch_size: int | None) -> PyTree:
     return jax.tree_util.tree_map(rule, tree)
 
 
+def traced_mesh():
+    """The mesh the program is being traced under (:func:`tracing_on`, ``jax.set_mesh``) if its ``"data"`` axis
+    splits the batch over several devices, else ``None``."""
+    mesh = jax.sharding.get_abstract_mesh()
+    if mesh.empty or AXIS not in mesh.axis_names or mesh.shape[AXIS] < 2:
+        return None
+    return mesh
+
+
 def split_batch(tree: PyTree) -> PyTree:
     """``tree`` with each array's leading axis split along ``"data"`` of the mesh the program is traced under
     (:func:`tracing_on`); unchanged without such a mesh, and for arrays the axis does not divide evenly.
@@ -186,8 +195,8 @@ def split_batch(tree: PyTree) -> PyTree:
     sums the gradients across devices, where unmarked every device would compute the whole minibatch. Which
     arrays are split changes only speed, never results (up to the order of float sums).
     """
-    mesh = jax.sharding.get_abstract_mesh()
-    if mesh.empty or AXIS not in mesh.axis_names or mesh.shape[AXIS] < 2:
+    mesh = traced_mesh()
+    if mesh is None:
         return tree
     count = mesh.shape[AXIS]
 

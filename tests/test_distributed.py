@@ -41,11 +41,16 @@ def _run_all(commands: list[list[str]], env: dict) -> list[str]:
     return outputs
 
 
+def _cpu_devices(count: int) -> dict:
+    """The environment of a subprocess whose CPU is split into ``count`` JAX devices."""
+    return dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={count} "
+                "--xla_cpu_multi_thread_eigen=false", JAX_PLATFORMS="cpu")
+
+
 def _launch(out: Path, agent: str, devices: str, *, cpu_devices: int, processes: int = 1,
             stop_after: int | None = None) -> None:
     """Runs the worker in ``processes`` processes of ``cpu_devices`` CPU devices each and waits for all."""
-    env = dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={cpu_devices} "
-               "--xla_cpu_multi_thread_eigen=false", JAX_PLATFORMS="cpu")
+    env = _cpu_devices(cpu_devices)
     port = _free_port()
     commands = []
     for process in range(processes):
@@ -143,8 +148,7 @@ def test_four_processes_train_as_one_device(one_device, tmp_path):
 def test_the_command_line_launches_two_processes(tmp_path):
     """``jarena train`` with --coordinator/--num-processes/--process-id, as a cluster launcher would start it:
     both processes train on the 2-device mesh, and only process 0 prints the results and writes the run."""
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=1 --xla_cpu_multi_thread_eigen=false",
-               JAX_PLATFORMS="cpu")
+    env = _cpu_devices(1)
     port, run = _free_port(), tmp_path / "run"
     commands = [[sys.executable, "-m", "jarena.cli", "train", "ppo", "classic|domain:cartpole", "--steps", "512",
                  "--set", "num_arenas=8", "--set", "rollout_length=32", "--no-progress", "--videos", "0",
@@ -175,8 +179,7 @@ print("ALL-REDUCES", len(re.findall(r"all-reduce", text)))
 def test_a_sharded_rollout_steps_each_devices_arenas_without_cross_device_traffic():
     # a lazy auto-reset asks "did any arena finish?" every step: on a mesh each device answers for its own
     # arenas, so the compiled rollout holds no all-reduce (the partitioner would insert one per step)
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4 --xla_cpu_multi_thread_eigen=false",
-               JAX_PLATFORMS="cpu")
+    env = _cpu_devices(4)
     output = _run_all([[sys.executable, "-c", SHARDED_ROLLOUT]], env)[0]
     assert "ALL-REDUCES 0" in output, output[-2000:]
 
@@ -215,8 +218,7 @@ def test_bc_splits_its_minibatches_over_the_devices_and_trains_as_one_device(tmp
     # bc samples its minibatches from a replicated dataset: on a mesh each device computes the loss of its
     # share and XLA sums the gradients (all-reduces; a replicated minibatch compiles to none), and the run's
     # parameters and losses are one device's
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4 --xla_cpu_multi_thread_eigen=false",
-               JAX_PLATFORMS="cpu")
+    env = _cpu_devices(4)
     output = _run_all([[sys.executable, "-c", BC_ON_A_MESH, str(tmp_path / "demos")]], env)[0]
     found = re.search(r"DEVICES 4 ALL-REDUCES (\d+)", output)
     assert found and int(found.group(1)) > 0, output[-2000:]

@@ -12,7 +12,7 @@ from jarena.core.arena import Arena
 from jarena.core.resets import reset_strategy
 from jarena.core.tree import tree_where
 from jarena.core.types import ArenaParams, ArenaState, Info
-from jarena.distributed import AXIS
+from jarena.distributed import AXIS, traced_mesh
 
 PyTree = Any
 
@@ -82,7 +82,7 @@ def batch_step(arena: Arena, states: ArenaState, actions: PyTree, params: ArenaP
     may round differently: walker observations agreed to 1e-4 after 25 steps on 4 CPU devices).
     """
     params = arena.default_params() if params is None else params
-    mesh = _arena_mesh()
+    mesh = traced_mesh()
     if mesh is None or params_axis not in (None, 0):
         return _batch_step(arena, states, actions, params, params_axis, reset_done)
     split = PartitionSpec(AXIS)
@@ -101,12 +101,3 @@ def _batch_step(arena: Arena, states: ArenaState, actions: PyTree, params: Arena
     stepped = jax.vmap(arena.step, in_axes=(0, 0, params_axis))(states, actions, params)
     restart = jax.vmap(lambda s, i, p: _start_new_episodes(arena, s, i, p), in_axes=(0, 0, params_axis))
     return jax.lax.cond(jnp.any(stepped[1].done), lambda x: restart(*x, params), lambda x: x, stepped)
-
-
-def _arena_mesh():
-    """The mesh (traced under ``jax.set_mesh``) whose ``"data"`` axis splits the arena batch over several
-    devices, or ``None``."""
-    mesh = jax.sharding.get_abstract_mesh()
-    if mesh.empty or AXIS not in mesh.axis_names or mesh.shape[AXIS] < 2:
-        return None
-    return mesh
