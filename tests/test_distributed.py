@@ -145,6 +145,24 @@ def test_four_processes_train_as_one_device(one_device, tmp_path):
     _assert_same_run(got, one_device["ppo"])
 
 
+# Wider meshes (issue 23's CPU part): 8 devices, the width of one 8-GPU node, in one process and as 2 processes
+# of 4 devices (a cluster of two 4-GPU hosts); PPO's 8 arenas then leave one arena per device, and its
+# minibatches of 64 samples 8 per device.
+def test_eight_devices_in_one_process_train_as_one_device(one_device, tmp_path):
+    _launch(tmp_path, "ppo", "all", cpu_devices=8)
+    got = _result(tmp_path)
+    assert got["processes"] == 1 and got["devices"] == 8 and got["batch_shards"] == 8
+    _assert_same_run(got, one_device["ppo"])
+
+
+def test_two_processes_of_four_devices_train_as_one_device(one_device, tmp_path):
+    _launch(tmp_path, "ppo", "all", cpu_devices=4, processes=2)
+    for process in (0, 1):
+        got = _result(tmp_path, process)
+        assert got["processes"] == 2 and got["devices"] == 8 and got["batch_shards"] == 8
+        _assert_same_run(got, one_device["ppo"])
+
+
 def test_the_command_line_launches_two_processes(tmp_path):
     """``jarena train`` with --coordinator/--num-processes/--process-id, as a cluster launcher would start it:
     both processes train on the 2-device mesh, and only process 0 prints the results and writes the run."""
