@@ -7,7 +7,8 @@
   U(-0.15, 0.15) m in x and y, drops it and lets it settle (SoftGym lifts once, without the sway);
   then with probability 0.7 drags another random particle by U(-0.3, 0.3) m in x and y at
   0.1 m height and lets go; finally the cloth is moved (x-y only) so that its mean is within
-  ``CRUMPLED_SHIFT`` of the origin. About 250 physics steps, inside ``reset``.
+  ``CRUMPLED_SHIFT`` of the origin. About 250 physics steps, inside ``reset``, as one scan (one copy of the
+  physics step in the compiled program, about half the code of a scan per move, the same states to the bit).
 """
 
 from __future__ import annotations
@@ -43,39 +44,61 @@ def flat(key: jax.Array, physics: ClothPhysics, params: ClothParams) -> ClothSta
     return physics.state_from_positions(_flat_positions(key, physics, params, FLAT_SHIFT))
 
 
-def _controls(k: int, picker: int, segments) -> jax.Array:
-    """Stacks ``(delta (3,), grip, steps)`` segments for picker ``picker`` (the others stay open and still)."""
-    out = []
-    for delta, grip, steps in segments:
-        control = jnp.zeros((k, 4), jnp.float32).at[:, 3].set(-1.0)
-        control = control.at[picker].set(jnp.concatenate([jnp.asarray(delta, jnp.float32).reshape(3),
-                                                           jnp.asarray(grip, jnp.float32).reshape(1)]))
-        out.append(jnp.broadcast_to(control, (steps, k, 4)))
-    return jnp.concatenate(out)
+SEGMENTS = 8
+"""The segments of a grab-and-move (see :func:`_grab_and_move_control`): go to the particle, grasp, rise, move,
+hold, let go, return to the ready pose, settle."""
 
 
-def _simulate(physics: ClothPhysics, params: ClothParams, state: ClothState, controls: jax.Array) -> ClothState:
-    return jax.lax.scan(lambda s, c: (physics.step(s, c, params), None), state, controls)[0]
-
-
-def _grab_and_move(physics, params, state, particle, rise, shift, hold, settle, lift_steps, move_steps, enabled):
-    """Picker 0 grasps ``particle``, rises ``rise`` m, moves ``shift`` (x, y) m, holds, lets go, returns, settles."""
-    k = int(physics.num_pickers)
-    target = state.positions[particle]
-    grip = jnp.where(enabled, 1.0, -1.0)
-    ready = jnp.array([0.0, 0.0, READY_HEIGHT])
+def _grab_and_move_control(k: int, segment: jax.Array, state: ClothState, target: jax.Array, move: dict
+                           ) -> jax.Array:
+    """float32 (K, 4): the control of one step in ``segment`` (int32 scalar, in ``[0, SEGMENTS)``) of a
+    grab-and-move by picker 0 (the others stay open and still): go from where the picker is to ``target`` (3,),
+    grasp (``move["grip"]`` > 0; a disabled grab keeps the picker open), rise by ``move["lift"]`` (3,) per step,
+    move by ``move["move"]`` (3,) per step, hold, let go, return to the ready pose from ``target +
+    move["offset"]`` (3,), settle."""
     zero = jnp.zeros(3)
-    segments = [
-        (target - state.picker_positions[0], -1.0, 1),
-        (zero, grip, 1),
-        (jnp.array([0.0, 0.0, rise]) / lift_steps, grip, lift_steps),
-        (jnp.concatenate([shift, jnp.zeros(1)]) / move_steps, grip, move_steps),
-        (zero, grip, hold),
-        (zero, -1.0, 1),
-        (ready - (target + jnp.concatenate([shift, jnp.array([rise])])), -1.0, 1),
-        (zero, -1.0, settle),
-    ]
-    return _simulate(physics, params, state, _controls(k, 0, segments))
+    back = jnp.array([0.0, 0.0, READY_HEIGHT]) - (target + move["offset"])
+    deltas = jnp.stack([target - state.picker_positions[0], zero, move["lift"], move["move"], zero, zero, back, zero])
+    grip = move["grip"]
+    grips = jnp.stack([-1.0, grip, grip, grip, grip, -1.0, -1.0, -1.0]).astype(jnp.float32)
+    mine = jnp.concatenate([deltas[segment].astype(jnp.float32), grips[segment][None]])
+    return jnp.zeros((k, 4), jnp.float32).at[:, 3].set(-1.0).at[0].set(mine)
+
+
+def _grab_and_move_all(physics: ClothPhysics, params: ClothParams, state: ClothState, moves: list[dict]
+                       ) -> ClothState:
+    """Runs the grab-and-moves ``moves`` one after the other in one scan of the physics (one copy of the step in
+    the compiled program, however many moves).
+
+    Each move: ``particle`` (int32), ``rise``, ``shift`` (2,), ``enabled`` (bool) traced; ``hold``, ``settle``,
+    ``lift_steps``, ``move_steps`` static ints. The picker goes to where the particle lies when its move starts,
+    rises ``rise`` m over ``lift_steps`` steps, moves ``shift`` (x, y) m over ``move_steps``, holds ``hold``
+    steps, lets go, returns to the ready pose and settles ``settle`` steps.
+    """
+    k = int(physics.num_pickers)
+    move_of, segment_of, table = [], [], []
+    for m, move in enumerate(moves):
+        lengths = (1, 1, move["lift_steps"], move["move_steps"], move["hold"], 1, 1, move["settle"])
+        for segment, steps in enumerate(lengths):
+            move_of += [m] * steps
+            segment_of += [segment] * steps
+        # per-step displacements divided by the static step counts, outside the loop
+        table.append(dict(particle=move["particle"], grip=jnp.where(move["enabled"], 1.0, -1.0),
+                          lift=jnp.array([0.0, 0.0, move["rise"]]) / move["lift_steps"],
+                          move=jnp.concatenate([move["shift"], jnp.zeros(1)]) / move["move_steps"],
+                          offset=jnp.concatenate([move["shift"], jnp.array([move["rise"]])])))
+    table = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *table)
+
+    def body(carry, schedule):
+        state, target = carry
+        m, segment = schedule
+        move = jax.tree_util.tree_map(lambda x: x[m], table)
+        target = jnp.where(segment == 0, state.positions[move["particle"]], target)
+        control = _grab_and_move_control(k, segment, state, target, move)
+        return (physics.step(state, control, params), target), None
+
+    schedule = (jnp.asarray(move_of, jnp.int32), jnp.asarray(segment_of, jnp.int32))
+    return jax.lax.scan(body, (state, jnp.zeros(3, jnp.float32)), schedule)[0][0]
 
 
 def crumpled(key: jax.Array, physics: ClothPhysics, params: ClothParams) -> ClothState:
@@ -83,14 +106,16 @@ def crumpled(key: jax.Array, physics: ClothPhysics, params: ClothParams) -> Clot
     k_flat, k_lift, k_height, k_drag, k_do, k_shift, k_centre = jax.random.split(key, 7)
     n = physics.mesh.num_particles
     state = physics.state_from_positions(_flat_positions(k_flat, physics, params, 0.0))
+    moves = []
     for k_particle, k_rise, k_sway in jax.random.split(k_lift, (2, 3)):
         height = jax.random.uniform(k_rise, (), jnp.float32, 0.05, 0.4)
         sway = jax.random.uniform(k_sway, (2,), jnp.float32, -0.15, 0.15)
-        state = _grab_and_move(physics, params, state, jax.random.randint(k_particle, (), 0, n), height, sway,
-                               hold=5, settle=40, lift_steps=20, move_steps=10, enabled=jnp.array(True))
+        moves.append(dict(particle=jax.random.randint(k_particle, (), 0, n), rise=height, shift=sway,
+                          enabled=jnp.array(True), hold=5, settle=40, lift_steps=20, move_steps=10))
     shift = jax.random.uniform(k_shift, (2,), jnp.float32, -0.3, 0.3)
-    state = _grab_and_move(physics, params, state, jax.random.randint(k_drag, (), 0, n), 0.1, shift,
-                           hold=5, settle=60, lift_steps=5, move_steps=15, enabled=jax.random.bernoulli(k_do, 0.7))
+    moves.append(dict(particle=jax.random.randint(k_drag, (), 0, n), rise=0.1, shift=shift,
+                      enabled=jax.random.bernoulli(k_do, 0.7), hold=5, settle=60, lift_steps=5, move_steps=15))
+    state = _grab_and_move_all(physics, params, state, moves)
     centre = jax.random.uniform(k_centre, (2,), jnp.float32, -CRUMPLED_SHIFT, CRUMPLED_SHIFT)
     offset = centre - collision.fixed_sum(state.positions[:, :2], axis=0) / n
     positions = state.positions.at[:, :2].add(offset)
