@@ -50,7 +50,7 @@ def _agent_config(args, arena) -> dict:
     run trained with, then the ``--set`` overrides.
 
     On arenas without a tuned ``default`` config the agent runs on its built-in defaults (with a note on
-    stderr, except for agents tagged ``arena_model``). Those (the planners, the cloth flattening oracle's
+    stderr, except for agents tagged ``arena_model``). Those (the planners, the cloth oracles'
     lookahead) simulate the arena they act in: their config's ``arena`` is the evaluated arena's string.
     """
     import jarena

@@ -8,13 +8,21 @@ takes them. This one reads the goal the task puts in ``info.goal`` (the folded p
 2. until the episode's first fold, while a handle (corner or edge midpoint, :func:`.cloth_actions.handles`)
    of the floor layer lies more than ``flat_tolerance`` from that flat pose (a crumpled start), flatten: pull
    the handle farthest from its flat position there (as ``oracle_cloth_flattening``, toward this pose);
-3. then fold, and never flatten again in the episode (that would undo the fold): pick the handle of the
-   folding side farthest from its goal and place it on its goal (``K`` pickers: the ``K`` worst), preferring
-   handles on top (a covered one counts a quarter: the pickers grasp the top layer);
-4. once every handle is within ``stop_distance`` of its goal, do nothing (pick and place at the workspace's
-   empty corner).
+3. then fold, and never flatten again in the episode (that would undo the fold): the analytic fold picks the
+   handle of the folding side farthest from its goal and places it on its goal (``K`` pickers: the ``K``
+   worst), preferring handles on top (a covered one counts a quarter: the pickers grasp the top layer);
+4. ``lookahead`` (default): try folds in the arena's own step and take the one that leaves the highest reward
+   (the lowest normalised fold distance): for each of ``fractions``, the analytic fold and each of the 16 edge
+   handles of the folding side (:func:`.cloth_actions.edge_handles`, one picker; spare pickers idle) placed
+   that fraction of the way to its goal, and doing nothing. A cloth carried at the tool's speed slides on
+   after release (its momentum drags the flap past its goal and the floor layer with it), so a place short of
+   the goal often folds closer; the lookahead measures that rather than guessing it. Without lookahead: the
+   analytic fold, and once every handle is within ``stop_distance`` of its goal, nothing (pick and place at
+   the workspace's empty corner).
 
-Actions are in the frame of the arena's tool, as the flattening oracle's.
+The lookahead plans with the arena it acts in, as the flattening oracle's: config ``arena`` (the ``jarena``
+command sets it) or ``make_cloth_folding_oracle(config, arena=...)``. Actions are in the frame of the arena's
+tool, as the flattening oracle's.
 """
 
 from __future__ import annotations
@@ -29,15 +37,19 @@ from jarena.arenas.cloth.collision import fixed_matmul, fixed_sum
 from jarena.arenas.cloth.mesh import ClothMesh
 from jarena.core.agent import Agent
 from jarena.core.arena import ArenaSpec
-from jarena_agents.config import Range, make_config, ranged
+from jarena_agents.config import ConfigError, Range, make_config, ranged
 from jarena_agents.oracles import cloth_actions
+from jarena_agents.planners.agent import resolve_model
 from jarena_agents.registry import register_agent
 
 
 @dataclasses.dataclass(frozen=True)
 class ClothFoldingOracleConfig:
     flat_tolerance: float = ranged(0.04, Range(0.0, 1.0))  # metres: floor-layer handles this far off: flatten first
-    stop_distance: float = ranged(0.1, Range(0.0, 1.0))  # metres: every handle this near its goal: stop
+    stop_distance: float = ranged(0.1, Range(0.0, 1.0))  # metres: without lookahead, every handle this near: stop
+    lookahead: bool = True  # try the folds in the arena's own dynamics and take the best
+    fractions: tuple = (0.6, 0.7, 0.8, 0.9, 1.0)  # how far toward its goal a proposed fold places a handle
+    arena: str = ""  # the arena the lookahead simulates (its build string); the jarena command sets it
 
 
 @struct.dataclass
@@ -67,9 +79,59 @@ def flat_pose(goal: jax.Array, mesh: ClothMesh) -> jax.Array:
     return fixed_matmul(material, jnp.linalg.solve(gram, moment))
 
 
-def make_cloth_folding_oracle(config=None) -> Agent:
-    """The oracle for ``cloth|...,task:<fold>`` arenas (``side_fold``, ``diagonal_fold``, ``one_corner_inward``)."""
+def fold_proposals(positions: jax.Array, goal: jax.Array, mesh: ClothMesh, pickers: int, coordinates: str,
+                   fractions: tuple[float, ...]) -> tuple[jax.Array, jax.Array]:
+    """The folds the lookahead tries: ``(actions (P, 4 K), valid (P,))``, P = 2 + 17 x len(fractions).
+
+    First the analytic fold and doing nothing; then, for each fraction ``f``, the analytic fold and each of
+    the 16 edge handles alone, each handle placed at ``pick + f (goal - pick)``. A handle that stays on the
+    floor in ``goal`` (N, 3) is not a valid fold (``valid`` false).
+    """
+    corners = jnp.asarray(cloth_actions.handles(mesh))
+    edges = jnp.asarray(cloth_actions.edge_handles(mesh))
+    moving_corners = ~floor_layer(goal, mesh)[corners]
+    moving_edges = ~floor_layer(goal, mesh)[edges]
+    spare = jnp.tile(cloth_actions.idle(pickers - 1), (edges.shape[0], 1))
+    actions = [cloth_actions.pull(positions, corners, goal[corners, :2], moving_corners, pickers, mesh.spacing,
+                                  coordinates)[0][None], cloth_actions.idle(pickers)[None]]
+    valid = [jnp.ones((2,), bool)]
+    for f in fractions:
+        def toward(handles):
+            pick = positions[handles, :2]
+            return pick, pick + jnp.float32(f) * (goal[handles, :2] - pick)
+
+        _, corner_places = toward(corners)
+        actions.append(cloth_actions.pull(positions, corners, corner_places, moving_corners, pickers, mesh.spacing,
+                                          coordinates)[0][None])
+        pick, place = toward(edges)
+        single = jax.vmap(lambda p, q: cloth_actions.encode(p[None], q[None], coordinates))(pick, place)
+        actions.append(jnp.concatenate([single, spare], -1))
+        valid += [jnp.ones((1,), bool), moving_edges]
+    return jnp.concatenate(actions), jnp.concatenate(valid)
+
+
+def make_cloth_folding_oracle(config=None, arena=None) -> Agent:
+    """The oracle for ``cloth|...,task:<fold>`` arenas (``side_fold``, ``diagonal_fold``, ``one_corner_inward``).
+
+    Args:
+      config: :class:`ClothFoldingOracleConfig` overrides.
+      arena: the arena the lookahead simulates (else the one built from config ``arena``).
+
+    Raises:
+      ConfigError: with ``lookahead`` and no arena to simulate, or fractions outside (0, 1.5].
+    """
     cfg = make_config(ClothFoldingOracleConfig, config, agent="oracle_cloth_folding")
+    fractions = tuple(float(f) for f in cfg.fractions)
+    if not fractions or not all(0.0 < f <= 1.5 for f in fractions):
+        raise ConfigError(f"config key 'fractions' of agent 'oracle_cloth_folding' must be a non-empty list of "
+                          f"numbers in (0, 1.5] (how far toward its goal a fold places a handle), got {cfg.fractions!r}")
+    model = None
+    if cfg.lookahead:
+        if arena is None and not cfg.arena:
+            raise ConfigError("agent 'oracle_cloth_folding' looks ahead in the arena's own dynamics and needs that "
+                              "arena: pass config arena='<arena string>' (the jarena command does), make it with "
+                              "arena=<Arena>, or set lookahead=False for the analytic fold alone")
+        model, _, _ = resolve_model("oracle_cloth_folding", cfg, arena, None)
 
     def init(key, spec, num_arenas):
         return FoldingOracleState(folding=jnp.zeros((num_arenas,), bool), spec=spec)
@@ -77,19 +139,23 @@ def make_cloth_folding_oracle(config=None) -> Agent:
     def reset(state, mask):
         return state.replace(folding=state.folding & ~mask)
 
-    def one(positions, goal, folding, mesh: ClothMesh, pickers: int, coordinates: str):
+    def one(privileged, goal, folding, pickers: int, coordinates: str):
+        positions, mesh = privileged.physics.positions, privileged.physics.mesh
         handles = jnp.asarray(cloth_actions.handles(mesh))
         on_floor = floor_layer(goal, mesh)[handles]
         flat = flat_pose(goal, mesh)[handles]
-        folded = goal[handles, :2]
         flat_action, flat_error = cloth_actions.pull(positions, handles, flat, on_floor, pickers, mesh.spacing,
                                                      coordinates)
-        fold_action, fold_error = cloth_actions.pull(positions, handles, folded, ~on_floor, pickers, mesh.spacing,
-                                                     coordinates)
         flatten = ~folding & (flat_error > cfg.flat_tolerance)
-        action = jnp.where(flatten, flat_action, fold_action)
-        done = ~flatten & (fold_error <= cfg.stop_distance)
-        return jnp.where(done, cloth_actions.idle(pickers), action), ~flatten
+        if model is None:
+            fold_action, fold_error = cloth_actions.pull(positions, handles, goal[handles, :2], ~on_floor, pickers,
+                                                         mesh.spacing, coordinates)
+            fold_action = jnp.where(fold_error <= cfg.stop_distance, cloth_actions.idle(pickers), fold_action)
+        else:
+            tried, valid = fold_proposals(positions, goal, mesh, pickers, coordinates, fractions)
+            reward = jax.vmap(lambda a: model.step(privileged, a)[1])(tried)
+            fold_action = tried[jnp.argmax(jnp.where(valid, reward, -jnp.inf))]  # the first of equals
+        return jnp.where(flatten, flat_action, fold_action), ~flatten
 
     def act(state, info, key, privileged):
         coordinates = cloth_actions.frame_of(privileged, "oracle_cloth_folding")
@@ -100,16 +166,17 @@ def make_cloth_folding_oracle(config=None) -> Agent:
                             f"one_corner_inward), whose info.goal holds the folded particles; got a goal of size "
                             f"{info.goal.shape[-1]}")
         pickers = state.spec.action.shape[-1] // 4
-        positions = physics.positions
-        batch = positions.shape[:-2]
-        flat = positions.reshape((-1,) + positions.shape[-2:])
+        batch = physics.positions.shape[:-2]
+        if model is not None:
+            model.check_state(privileged, batch_dims=len(batch))
+        flat = jax.tree_util.tree_map(lambda x: x.reshape((-1,) + x.shape[len(batch):]), privileged)
         goals = info.goal.reshape((-1, mesh.num_particles, 3))
         folding = state.folding.reshape(-1)
-        actions, folding = jax.vmap(lambda p, g, f: one(p, g, f, mesh, pickers, coordinates))(flat, goals, folding)
+        actions, folding = jax.vmap(lambda p, g, f: one(p, g, f, pickers, coordinates))(flat, goals, folding)
         return actions.reshape(batch + actions.shape[-1:]), state.replace(folding=folding.reshape(batch))
 
     return Agent(name="oracle_cloth_folding", init=init, act=act, reset=reset, privileged=True, made_for=("cloth",),
                  config=dataclasses.asdict(cfg))
 
 
-register_agent("oracle_cloth_folding", make_cloth_folding_oracle, tags=("oracle",))
+register_agent("oracle_cloth_folding", make_cloth_folding_oracle, tags=("oracle", "arena_model"))

@@ -1,4 +1,5 @@
-"""The cloth folding oracle: it reads the fold from info.goal, folds flat cloths and leaves spare pickers idle."""
+"""The cloth folding oracle: it reads the fold from info.goal, folds flat cloths, leaves spare pickers idle, and its
+lookahead takes the fold that ends nearest the goal."""
 
 import jax
 import jax.numpy as jnp
@@ -9,12 +10,19 @@ import jarena
 from jarena.core.agent import AgentArenaMismatch
 from jarena_agents.oracles import cloth_actions
 from jarena_agents.oracles.cloth_folding import flat_pose, floor_layer
+from jarena_agents.config import ConfigError
 from jarena_agents.registry import build_agent
+
+ANALYTIC = {"lookahead": False}
+
+
+def _string(task: str, tool: str = "pixel_pick_and_place(1)", initial: str = "flat", particles: int = 16) -> str:
+    return (f"cloth|task:{task},initial:{initial},particles:{particles},resolution:32,horizon:2,action:{tool},"
+            "depth:false,mask:false")
 
 
 def _arena(task: str, tool: str = "pixel_pick_and_place(1)", initial: str = "flat") -> jarena.Arena:
-    return jarena.build_arena(f"cloth|task:{task},initial:{initial},particles:16,resolution:32,horizon:2,"
-                              f"action:{tool}")
+    return jarena.build_arena(_string(task, tool, initial))
 
 
 @pytest.mark.parametrize("task", ["side_fold", "diagonal_fold", "one_corner_inward"])
@@ -32,7 +40,7 @@ def test_the_flat_pose_under_a_goal_is_the_cloth_it_folds(task):
 def test_the_oracle_folds_a_flat_cloth_closer_than_random():
     arena = _arena("side_fold")
     episodes = list(range(4))
-    oracle = jarena.evaluate(build_agent("oracle_cloth_folding"), arena, episodes=episodes)
+    oracle = jarena.evaluate(build_agent("oracle_cloth_folding", ANALYTIC), arena, episodes=episodes)
     random = jarena.evaluate(build_agent("random"), arena, jax.random.key(0), episodes=episodes)
     folded = np.asarray(oracle.metrics["normalised_fold_distance"])
     assert folded.max() < 0.8, folded  # 1: the unfolded cloth
@@ -49,7 +57,7 @@ def _first_action(arena, agent):
 def test_spare_pickers_idle_and_the_fold_starts_at_once_on_a_flat_cloth():
     # one corner moves in one_corner_inward: the second picker has nothing to fold
     arena = _arena("one_corner_inward", "pixel_pick_and_place(2)")
-    oracle = build_agent("oracle_cloth_folding")
+    oracle = build_agent("oracle_cloth_folding", ANALYTIC)
     action, state = _first_action(arena, oracle)
     np.testing.assert_array_equal(action[:, 4:], np.tile(cloth_actions.idle(1), (2, 1)))
     assert not np.array_equal(action[:, :4], action[:, 4:])
@@ -59,10 +67,51 @@ def test_spare_pickers_idle_and_the_fold_starts_at_once_on_a_flat_cloth():
 
 def test_a_crumpled_start_is_flattened_before_folding():
     arena = _arena("side_fold", initial="crumpled")
-    action, state = _first_action(arena, build_agent("oracle_cloth_folding"))
+    action, state = _first_action(arena, build_agent("oracle_cloth_folding", ANALYTIC))
     assert not np.asarray(state.folding).any()
 
 
 def test_the_oracle_needs_a_folding_task():
     with pytest.raises(AgentArenaMismatch, match="folding tasks"):
-        build_agent("oracle_cloth_folding").check_fits(jarena.build_arena("cloth|particles:8,resolution:16"))
+        build_agent("oracle_cloth_folding", ANALYTIC).check_fits(jarena.build_arena("cloth|particles:8,resolution:16"))
+
+
+def test_the_lookahead_takes_the_fold_that_ends_nearest_the_goal():
+    from jarena_agents.oracles.cloth_folding import fold_proposals
+    from jarena_agents.planners.model import arena_model
+
+    string = _string("diagonal_fold", particles=12)
+    arena = jarena.build_arena(string)
+    oracle = build_agent("oracle_cloth_folding", {"arena": string, "fractions": (0.7, 1.0)})
+    model = arena_model(arena)
+
+    @jax.jit
+    def check(episodes):
+        state, info = jax.vmap(lambda e: arena.reset(episode=e))(episodes)
+        privileged = jax.vmap(arena.privileged)(state)
+        taken, _ = oracle.act(oracle.init(jax.random.key(0), arena.spec, 2), info, jax.random.key(1), privileged)
+        mesh = privileged.physics.mesh
+
+        def one(start, goal, action):
+            tried, valid = fold_proposals(start.physics.positions, goal.reshape(-1, 3), mesh, 1, "pixel", (0.7, 1.0))
+            return jax.vmap(lambda a: model.step(start, a)[1])(tried), valid, model.step(start, action)[1]
+
+        return jax.vmap(one)(privileged, info.goal, taken)
+
+    tried, valid, taken = (np.asarray(x) for x in check(jnp.arange(2)))
+    assert tried.shape == valid.shape == (2, 2 + 17 * 2)
+    for i in range(2):
+        assert 0 < valid[i].sum() < valid.shape[1]  # only the folding side's handles are proposed
+        assert len(np.unique(tried[i][valid[i]])) > 3, tried[i]  # the proposals differ
+        assert taken[i] == tried[i][valid[i]].max(), (taken[i], tried[i])  # reward: -normalised fold distance
+        assert taken[i] >= tried[i, 0]  # never worse than the analytic fold
+        assert taken[i] > tried[i, 1]  # folding beats doing nothing on a flat cloth
+
+
+def test_the_lookahead_needs_the_arena_it_simulates_and_fractions_toward_the_goal():
+    with pytest.raises(ConfigError, match="arena='<arena string>'.*lookahead=False"):
+        build_agent("oracle_cloth_folding")
+    with pytest.raises(ConfigError, match="fractions.*in \\(0, 1.5\\]"):
+        build_agent("oracle_cloth_folding", {"lookahead": False, "fractions": (0.5, 2.0)})
+    with pytest.raises(ConfigError, match="fractions"):
+        build_agent("oracle_cloth_folding", {"lookahead": False, "fractions": ()})
