@@ -2,7 +2,8 @@
 
 Weak scaling keeps the arenas per device fixed (the batch grows with the devices); strong scaling keeps the
 global batch fixed. For each device count it reports rollout steps/s (a random agent, ``perform_parallel``,
-``record=False``, the compiled call timed after a warm-up) and PPO training steps/s (``train_and_evaluate``
+``record=False``, the compiled call timed after a warm-up), ``evaluate`` steps/s (the same agent, one episode
+per arena capped at the rollout's steps, host results included) and PPO training steps/s (``train_and_evaluate``
 on the mesh, from the chunks after the first, so compilation is excluded), and the ratio to one device.
 
     python benchmarks/multi_device_scaling.py --arena "dmc|domain:walker,task:walk" --arenas 2048 \
@@ -20,6 +21,7 @@ import json
 import time
 
 import jax
+import numpy as np
 from timing import environment
 
 import jarena
@@ -40,6 +42,22 @@ def rollout_rate(arena, num_arenas: int, steps: int, devices: int, repeats: int)
                                                       record=False, devices=devices).info.reward)
         best = min(best, time.perf_counter() - t0)
     return num_arenas * steps / best
+
+
+def evaluate_rate(arena, num_episodes: int, steps: int, devices: int, repeats: int) -> float:
+    """Agent steps per second of ``evaluate`` (a random agent, ``num_episodes`` episodes capped at ``steps``)."""
+    agent = jarena_agents.build_agent("random")
+    episodes = np.arange(num_episodes)
+
+    def once(seed):
+        t0 = time.perf_counter()
+        result = jarena.evaluate(agent, arena, jax.random.key(seed), episodes=episodes, max_steps=steps,
+                                 devices=devices)  # returns host arrays: the call has finished
+        return time.perf_counter() - t0, int(result.lengths.sum())
+
+    once(0)  # compile and warm up
+    best = min(once(i + 1) for i in range(repeats))
+    return best[1] / best[0]
 
 
 def ppo_rate(arena, config: dict, num_arenas: int, total_steps: int, devices: int) -> tuple[float, float]:
@@ -64,22 +82,36 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--ppo-steps", type=int, default=0, help="PPO environment steps per run (0: no PPO)")
     parser.add_argument("--ppo-config", default="default", help="config name under configs/ppo/<arena>/")
+    parser.add_argument("--devices", default="1,all", help="device counts to compare, the first the baseline")
     args = parser.parse_args()
     arena = jarena.build_arena(args.arena)
-    counts = sorted({1, len(jax.local_devices())})
+    counts = sorted({int(c) if c != "all" else len(jax.local_devices()) for c in args.devices.split(",")})
     config = jarena.retrieve_config("ppo", arena, args.ppo_config) if args.ppo_steps else None
+    if args.ppo_steps:  # the largest batch (weak scaling's last) must still make 2 updates: check before any run
+        largest = jarena_agents.build_agent("ppo", dict(config, num_arenas=args.arenas * counts[-1],
+                                                       total_steps=args.ppo_steps)).settings
+        if largest.num_updates < 2:
+            raise SystemExit(f"--ppo-steps {args.ppo_steps} is {largest.num_updates} PPO update of "
+                             f"{largest.steps_per_update} steps at {args.arenas * counts[-1]} arenas; the rate is "
+                             "measured after the first chunk: give at least 2 updates' worth")
     results = {}
     for scaling in ("weak", "strong"):
         for d in counts:
             n = args.arenas * d if scaling == "weak" else args.arenas
+            if scaling == "strong" and d == counts[0]:  # the same run as weak scaling's first
+                results[f"{scaling}/{d}"] = results[f"weak/{d}"]
+                continue
             row = {"devices": d, "arenas": n,
-                   "rollout_steps_per_s": rollout_rate(arena, n, args.rollout_steps, d, args.repeats)}
+                   "rollout_steps_per_s": rollout_rate(arena, n, args.rollout_steps, d, args.repeats),
+                   "evaluate_steps_per_s": evaluate_rate(arena, n, args.rollout_steps, d, args.repeats)}
             if args.ppo_steps:
                 row["ppo_steps_per_s"], row["ppo_return"] = ppo_rate(arena, config, n, args.ppo_steps, d)
             results[f"{scaling}/{d}"] = row
             base = results[f"{scaling}/{counts[0]}"]
             print(f"{scaling:6s} {d} device(s) {n:8d} arenas: rollout {row['rollout_steps_per_s']:.4g} steps/s "
-                  f"({row['rollout_steps_per_s'] / base['rollout_steps_per_s']:.2f}x)"
+                  f"({row['rollout_steps_per_s'] / base['rollout_steps_per_s']:.2f}x), "
+                  f"evaluate {row['evaluate_steps_per_s']:.4g} steps/s "
+                  f"({row['evaluate_steps_per_s'] / base['evaluate_steps_per_s']:.2f}x)"
                   + (f", ppo {row['ppo_steps_per_s']:.4g} steps/s "
                      f"({row['ppo_steps_per_s'] / base['ppo_steps_per_s']:.2f}x), return {row['ppo_return']:.1f}"
                      if args.ppo_steps else ""), flush=True)

@@ -23,6 +23,11 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+try:  # the partitioner switch as a scoped context (see _gspmd_partitioner); absent: JAX's default is kept
+    from jax._src import config as jax_config
+except ImportError:  # pragma: no cover - a JAX without it
+    jax_config = None
+
 PyTree = Any
 
 #: The mesh axis the arena batch is sharded along.
@@ -142,11 +147,30 @@ def mesh(devices: int | str | None = None) -> Mesh:
     return Mesh(np.asarray(chosen), (AXIS,))
 
 
+def _gspmd_partitioner():
+    """A context that lowers programs for XLA's GSPMD partitioner instead of Shardy (JAX's default), or a no-op
+    where this JAX has no such switch.
+
+    XLA's CUDA plugin (jax 0.11.2, H100s) segfaults while compiling MJX's solver inside ``jax.shard_map`` for
+    two GPUs when the program comes through Shardy, and compiles it through GSPMD (``benchmarks/RESULTS.md``,
+    "Scaling over devices"). The partitioner changes how the program is split, never what it computes; the
+    switch is scoped to jarena's sharded calls, so the caller's own programs keep JAX's default.
+    """
+    switch = getattr(jax_config, "use_shardy_partitioner", None)
+    return switch(False) if callable(switch) else contextlib.nullcontext()
+
+
+@contextlib.contextmanager
 def tracing_on(mesh: Mesh):
-    """A context in which programs are traced with ``mesh`` as JAX's current mesh (``jax.set_mesh``), so that
-    batched arena code can keep per-arena decisions on each device (see ``jarena.core.batching``); a no-op for
-    a mesh of one device."""
-    return jax.set_mesh(mesh) if mesh.devices.size > 1 else contextlib.nullcontext()
+    """A context in which programs are traced, lowered and compiled with ``mesh`` as JAX's current mesh
+    (``jax.set_mesh``), so that batched arena code can keep per-arena decisions on each device (see
+    ``jarena.core.batching``), through XLA's GSPMD partitioner (:func:`_gspmd_partitioner` says why); a no-op
+    for a mesh of one device."""
+    if mesh.devices.size < 2:
+        yield
+        return
+    with jax.set_mesh(mesh), _gspmd_partitioner():
+        yield
 
 
 def replicated(mesh: Mesh) -> NamedSharding:

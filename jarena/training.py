@@ -269,7 +269,8 @@ def _compiled_training(agent, arena: Arena, key: jax.Array, mesh):
 
     shardings = distributed.batch_shardings(jax.eval_shape(init, key_data), mesh,
                                             getattr(agent.settings, "num_arenas", None))
-    train_state = jax.jit(init, out_shardings=shardings)(key_data)
+    with distributed.tracing_on(mesh):  # compiled as the chunks are (the partitioner: jarena.distributed)
+        train_state = jax.jit(init, out_shardings=shardings)(key_data)
     chunk = jax.jit(agent.train, static_argnums=(1, 2), donate_argnums=0, in_shardings=(shardings,),
                     out_shardings=(shardings, distributed.replicated(mesh)))
     return train_state, chunk

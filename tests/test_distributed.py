@@ -202,6 +202,26 @@ def test_a_sharded_rollout_steps_each_devices_arenas_without_cross_device_traffi
     assert "ALL-REDUCES 0" in output, output[-2000:]
 
 
+PARTITIONER = """
+import jax
+from jax._src import config
+from jarena import distributed
+with distributed.tracing_on(distributed.mesh(1)):
+    one = config.use_shardy_partitioner.value
+with distributed.tracing_on(distributed.mesh("all")):
+    several = config.use_shardy_partitioner.value
+print("SHARDY", config.use_shardy_partitioner.value, one, several)
+"""
+
+
+def test_sharded_calls_compile_through_gspmd_and_leave_the_default_alone():
+    # XLA's CUDA plugin (jax 0.11.2) segfaults compiling MJX under shard_map over 2 GPUs through Shardy
+    # (benchmarks/RESULTS.md, "Scaling over devices"): jarena's sharded calls switch to GSPMD, only inside
+    env = _cpu_devices(2)
+    output = _run_all([[sys.executable, "-c", PARTITIONER]], env)[0]
+    assert "SHARDY True True False" in output, output[-2000:]
+
+
 BC_ON_A_MESH = """
 import re, sys, jax, numpy as np
 import jarena, jarena_agents
