@@ -10,6 +10,8 @@ from jarena.arenas.cloth import camera as camera_lib
 from jarena.arenas.cloth import tools as tools_lib
 from jarena.arenas.cloth.collision import dot
 from jarena.arenas.cloth.mesh import ClothMesh
+from jarena_agents.config import ConfigError
+from jarena_agents.planners.agent import resolve_model
 
 
 def frame_of(privileged, agent: str) -> str:
@@ -38,6 +40,28 @@ def encode(pick: jax.Array, place: jax.Array, coordinates: str) -> jax.Array:
             return xy / defaults.workspace
     action = jnp.concatenate([to_frame(pick, defaults.pick_height), to_frame(place, defaults.place_height)], -1)
     return jnp.clip(action, -1.0, 1.0).reshape(-1)
+
+
+def one_picker(pick: jax.Array, place: jax.Array, pickers: int, coordinates: str) -> jax.Array:
+    """float32 (P, 4 K): P actions each moving one picker from ``pick`` to ``place`` (P, 2) world x-y, metres;
+    the other ``K - 1`` pickers idle."""
+    single = jax.vmap(lambda p, q: encode(p[None], q[None], coordinates))(pick, place)
+    return jnp.concatenate([single, jnp.tile(idle(pickers - 1), (single.shape[0], 1))], -1)
+
+
+def lookahead_model(agent: str, cfg, arena, without: str):
+    """The exact model of the arena an oracle's lookahead simulates: ``arena``, else the one built from config
+    ``arena`` (:func:`jarena_agents.planners.agent.resolve_model`).
+
+    Raises:
+      ConfigError: neither given; the message names the ways to give it and ``without`` (what
+        ``lookahead=False`` does instead).
+    """
+    if arena is None and not cfg.arena:
+        raise ConfigError(f"agent {agent!r} looks ahead in the arena's own dynamics and needs that arena: pass "
+                          "config arena='<arena string>' (the jarena command does), make it with arena=<Arena>, "
+                          f"or set lookahead=False for {without}")
+    return resolve_model(agent, cfg, arena, None)[0]
 
 
 def idle(num_pickers: int) -> jax.Array:

@@ -38,9 +38,8 @@ from jarena.arenas.cloth.collision import dot, fixed_sum
 from jarena.arenas.cloth.mesh import ClothMesh
 from jarena.core.agent import Agent
 from jarena_agents.basic import SpecState
-from jarena_agents.config import ConfigError, Range, in_unit_interval, make_config, ranged
+from jarena_agents.config import Range, in_unit_interval, make_config, ranged
 from jarena_agents.oracles import cloth_actions
-from jarena_agents.planners.agent import resolve_model
 from jarena_agents.registry import register_agent
 
 
@@ -108,11 +107,9 @@ def proposals(positions: jax.Array, goal: jax.Array, mesh: ClothMesh, pickers: i
     away = pick - centre_xy(positions)
     away = away / (jnp.sqrt(dot(away, away))[:, None] + 1e-6)
     places = jnp.concatenate([goal[handles], pick + outward * away])
-    spare = jnp.tile(cloth_actions.idle(pickers - 1), (places.shape[0], 1))
-    single = jax.vmap(lambda p, q: cloth_actions.encode(p[None], q[None], coordinates))(
-        jnp.concatenate([pick, pick]), places)
     analytic = analytic_pull(positions, goal, mesh, pickers, coordinates)
-    return jnp.concatenate([analytic[None], jnp.concatenate([single, spare], -1)])
+    return jnp.concatenate([analytic[None], cloth_actions.one_picker(jnp.concatenate([pick, pick]), places, pickers,
+                                                                     coordinates)])
 
 
 def make_cloth_flattening_oracle(config=None, arena=None) -> Agent:
@@ -126,13 +123,8 @@ def make_cloth_flattening_oracle(config=None, arena=None) -> Agent:
       ConfigError: with ``lookahead`` and no arena to simulate, or an arena the lookahead cannot step.
     """
     cfg = make_config(ClothFlatteningOracleConfig, config, agent="oracle_cloth_flattening")
-    model = None
-    if cfg.lookahead:
-        if arena is None and not cfg.arena:
-            raise ConfigError("agent 'oracle_cloth_flattening' looks ahead in the arena's own dynamics and needs "
-                              "that arena: pass config arena='<arena string>' (the jarena command does), make it "
-                              "with arena=<Arena>, or set lookahead=False for the analytic corner pull alone")
-        model, _, _ = resolve_model("oracle_cloth_flattening", cfg, arena, None)
+    model = (cloth_actions.lookahead_model("oracle_cloth_flattening", cfg, arena, "the analytic corner pull alone")
+             if cfg.lookahead else None)
 
     def init(key, spec, num_arenas):
         return SpecState(spec)

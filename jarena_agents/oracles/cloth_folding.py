@@ -39,7 +39,6 @@ from jarena.core.agent import Agent
 from jarena.core.arena import ArenaSpec
 from jarena_agents.config import ConfigError, Range, make_config, ranged
 from jarena_agents.oracles import cloth_actions
-from jarena_agents.planners.agent import resolve_model
 from jarena_agents.registry import register_agent
 
 
@@ -89,24 +88,21 @@ def fold_proposals(positions: jax.Array, goal: jax.Array, mesh: ClothMesh, picke
     """
     corners = jnp.asarray(cloth_actions.handles(mesh))
     edges = jnp.asarray(cloth_actions.edge_handles(mesh))
-    moving_corners = ~floor_layer(goal, mesh)[corners]
-    moving_edges = ~floor_layer(goal, mesh)[edges]
-    spare = jnp.tile(cloth_actions.idle(pickers - 1), (edges.shape[0], 1))
-    actions = [cloth_actions.pull(positions, corners, goal[corners, :2], moving_corners, pickers, mesh.spacing,
-                                  coordinates)[0][None], cloth_actions.idle(pickers)[None]]
+    moving = ~floor_layer(goal, mesh)
+
+    def toward(handles, f):  # float32 (H, 2): each handle placed the fraction f of the way to its goal
+        pick = positions[handles, :2]
+        return pick + jnp.float32(f) * (goal[handles, :2] - pick)
+
+    def fold(places):  # float32 (4 K,): the analytic fold onto places (corners and edge midpoints, (H, 2))
+        return cloth_actions.pull(positions, corners, places, moving[corners], pickers, mesh.spacing, coordinates)[0]
+
+    actions = [fold(goal[corners, :2])[None], cloth_actions.idle(pickers)[None]]
     valid = [jnp.ones((2,), bool)]
     for f in fractions:
-        def toward(handles):
-            pick = positions[handles, :2]
-            return pick, pick + jnp.float32(f) * (goal[handles, :2] - pick)
-
-        _, corner_places = toward(corners)
-        actions.append(cloth_actions.pull(positions, corners, corner_places, moving_corners, pickers, mesh.spacing,
-                                          coordinates)[0][None])
-        pick, place = toward(edges)
-        single = jax.vmap(lambda p, q: cloth_actions.encode(p[None], q[None], coordinates))(pick, place)
-        actions.append(jnp.concatenate([single, spare], -1))
-        valid += [jnp.ones((1,), bool), moving_edges]
+        actions += [fold(toward(corners, f))[None],
+                    cloth_actions.one_picker(positions[edges, :2], toward(edges, f), pickers, coordinates)]
+        valid += [jnp.ones((1,), bool), moving[edges]]
     return jnp.concatenate(actions), jnp.concatenate(valid)
 
 
@@ -124,14 +120,10 @@ def make_cloth_folding_oracle(config=None, arena=None) -> Agent:
     fractions = tuple(float(f) for f in cfg.fractions)
     if not fractions or not all(0.0 < f <= 1.5 for f in fractions):
         raise ConfigError(f"config key 'fractions' of agent 'oracle_cloth_folding' must be a non-empty list of "
-                          f"numbers in (0, 1.5] (how far toward its goal a fold places a handle), got {cfg.fractions!r}")
-    model = None
-    if cfg.lookahead:
-        if arena is None and not cfg.arena:
-            raise ConfigError("agent 'oracle_cloth_folding' looks ahead in the arena's own dynamics and needs that "
-                              "arena: pass config arena='<arena string>' (the jarena command does), make it with "
-                              "arena=<Arena>, or set lookahead=False for the analytic fold alone")
-        model, _, _ = resolve_model("oracle_cloth_folding", cfg, arena, None)
+                          "numbers in (0, 1.5] (how far toward its goal a fold places a handle), "
+                          f"got {cfg.fractions!r}")
+    model = (cloth_actions.lookahead_model("oracle_cloth_folding", cfg, arena, "the analytic fold alone")
+             if cfg.lookahead else None)
 
     def init(key, spec, num_arenas):
         return FoldingOracleState(folding=jnp.zeros((num_arenas,), bool), spec=spec)

@@ -8,9 +8,9 @@ import pytest
 
 import jarena
 from jarena.core.agent import AgentArenaMismatch
+from jarena_agents.config import ConfigError
 from jarena_agents.oracles import cloth_actions
 from jarena_agents.oracles.cloth_folding import flat_pose, floor_layer
-from jarena_agents.config import ConfigError
 from jarena_agents.registry import build_agent
 
 ANALYTIC = {"lookahead": False}
