@@ -48,10 +48,18 @@ def tuned_config(agent: str, arena) -> dict:
         return {}
 
 
-def run(arena, agent, actions: int, metric: str, agent_state=None):
-    """(initial, per-action metric (A, E), per-action success (A, E), seconds) over the arena's eval episodes;
-    ``agent_state``: a trained policy's acting state (default: the agent's ``init``)."""
-    ids = jnp.asarray(list(arena.episodes("eval")))
+def episode_ids(arena, split: str, count: int) -> jax.Array:
+    """int32 (count,): the arena's ``eval`` episodes, or the first ``count`` of its ``train`` range (the episodes
+    to tune an oracle's knobs on without fitting the eval episodes)."""
+    ids = arena.episodes(split)
+    return jnp.asarray(list(ids if split == "eval" else ids[:count]))
+
+
+def run(arena, agent, actions: int, metric: str, agent_state=None, split: str = "eval", count: int = 0):
+    """(initial, per-action metric (A, E), per-action success (A, E), seconds) over the arena's ``split``
+    episodes (see :func:`episode_ids`); ``agent_state``: a trained policy's acting state (default: the agent's
+    ``init``)."""
+    ids = episode_ids(arena, split, count)
     if agent_state is not None:
         agent_state = agent.batch_state(agent_state, ids.shape[0])
 
@@ -82,7 +90,9 @@ def main(argv=None) -> int:
                                                             "any agent name (default oracle,random)")
     p.add_argument("--initial", default=None, help="initial state (default: crumpled for flattening, flat for folds)")
     p.add_argument("--particles", type=int, default=40, help="particles along a side (default 40)")
-    p.add_argument("--episodes", type=int, default=64, help="eval episodes (default 64)")
+    p.add_argument("--episodes", type=int, default=64, help="episodes (default 64)")
+    p.add_argument("--split", default="eval", choices=("eval", "train"),
+                   help="eval episodes (default), or the first --episodes of the train range (to tune knobs on)")
     p.add_argument("--actions", type=int, default=10, help="pick-and-place actions per episode (default 10)")
     p.add_argument("--tool", default="pixel_pick_and_place(1)", help="action tool (default pixel_pick_and_place(1))")
     p.add_argument("--config", default="{}", help="JSON config for the oracle (default {})")
@@ -111,13 +121,15 @@ def main(argv=None) -> int:
                 config = json.loads(Path(args.checkpoint, "config.json").read_text())["config"]
             agent = build_agent(agent_name, config)
             policy = restore_policy(agent, arena, args.checkpoint) if trained else None
-            initial, values, success, seconds = run(arena, agent, args.actions, metric, policy)
+            initial, values, success, seconds = run(arena, agent, args.actions, metric, policy, args.split,
+                                                    args.episodes)
             best = values.min(0) if folding else values.max(0)
             print(f"{task} {agent_name}: initial {initial}\nfinal {values[-1]}\nbest {best}")
             label = agent_name + (f" {args.config}" if name == "oracle" and oracle_config else "")
-            row = {"task": task, "initial_state": initial_state, "agent": label, "episodes": len(initial),
-                   "actions": args.actions, "initial": float(initial.mean()), "final": float(values[-1].mean()),
-                   "best": float(best.mean()), "success": int(success.any(0).sum()), "seconds": seconds}
+            row = {"task": task, "initial_state": initial_state, "split": args.split, "agent": label,
+                   "episodes": len(initial), "actions": args.actions, "initial": float(initial.mean()),
+                   "final": float(values[-1].mean()), "best": float(best.mean()),
+                   "success": int(success.any(0).sum()), "seconds": seconds}
             if not folding:
                 row.update(reach_90=int((best >= 0.9).sum()), reach_99=int((best >= 0.99).sum()))
                 tier = tiers_lib.difficulty_tiers(initial)
@@ -125,14 +137,14 @@ def main(argv=None) -> int:
                                  "reach_90": int(((best >= 0.9) & (tier == t)).sum())}
                                 for t in range(len(tiers_lib.TIER_SIZES))]
             rows.append(row)
-    print("| task | initial state | agent | episodes | actions | initial (mean) | final (mean) | best (mean) | "
+    print("| task | initial state | split | agent | episodes | actions | initial (mean) | final (mean) | best (mean) | "
           "success | reach 0.9 | reach 0.99 | seconds |")
     for r in rows:
         n = r["episodes"]
         reach = (f"{r['reach_90']} ({r['reach_90'] / n:.0%}) | {r['reach_99']}" if "reach_90" in r else "- | -")
-        print(f"| {r['task']} | {r['initial_state']} | {r['agent']} | {n} | {r['actions']} | {r['initial']:.2f} | "
-              f"{r['final']:.2f} | {r['best']:.2f} | {r['success']} ({r['success'] / n:.0%}) | {reach} | "
-              f"{r['seconds']:.0f} |")
+        print(f"| {r['task']} | {r['initial_state']} | {r['split']} | {r['agent']} | {n} | {r['actions']} | "
+              f"{r['initial']:.2f} | {r['final']:.2f} | {r['best']:.2f} | {r['success']} ({r['success'] / n:.0%}) | "
+              f"{reach} | {r['seconds']:.0f} |")
     for r in rows:
         if "tiers" in r:
             print(f"{r['task']} {r['agent']} by tier (tier: reach 0.9 / episodes):",

@@ -83,6 +83,10 @@ def main() -> None:
     parser.add_argument("--ppo-steps", type=int, default=0, help="PPO environment steps per run (0: no PPO)")
     parser.add_argument("--ppo-config", default="default", help="config name under configs/ppo/<arena>/")
     parser.add_argument("--devices", default="1,all", help="device counts to compare, the first the baseline")
+    parser.add_argument("--measure", default="rollout,evaluate",
+                        help="what to time besides PPO (which --ppo-steps turns on): rollout, evaluate, both (default) "
+                             "or none")
+    parser.add_argument("--scaling", default="weak,strong", help="which to measure: weak, strong or both (default)")
     args = parser.parse_args()
     arena = jarena.build_arena(args.arena)
     counts = sorted({int(c) if c != "all" else len(jax.local_devices()) for c in args.devices.split(",")})
@@ -94,27 +98,33 @@ def main() -> None:
             raise SystemExit(f"--ppo-steps {args.ppo_steps} is {largest.num_updates} PPO update of "
                              f"{largest.steps_per_update} steps at {args.arenas * counts[-1]} arenas; the rate is "
                              "measured after the first chunk: give at least 2 updates' worth")
+    measures = set(args.measure.split(",")) - {"none"}
+    if measures - {"rollout", "evaluate"}:
+        raise SystemExit(f"--measure {args.measure!r}: give rollout, evaluate, rollout,evaluate or none")
+    scalings = [s for s in ("weak", "strong") if s in args.scaling.split(",")]
+    if not scalings or set(args.scaling.split(",")) - {"weak", "strong"}:
+        raise SystemExit(f"--scaling {args.scaling!r}: give weak, strong or weak,strong")
     results = {}
-    for scaling in ("weak", "strong"):
+    for scaling in scalings:
         for d in counts:
             n = args.arenas * d if scaling == "weak" else args.arenas
-            if scaling == "strong" and d == counts[0]:  # the same run as weak scaling's first
+            if f"weak/{d}" in results and d == counts[0]:  # the baseline: the same run for both
                 results[f"{scaling}/{d}"] = results[f"weak/{d}"]
                 continue
-            row = {"devices": d, "arenas": n,
-                   "rollout_steps_per_s": rollout_rate(arena, n, args.rollout_steps, d, args.repeats),
-                   "evaluate_steps_per_s": evaluate_rate(arena, n, args.rollout_steps, d, args.repeats)}
+            row = {"devices": d, "arenas": n}
+            if "rollout" in measures:
+                row["rollout_steps_per_s"] = rollout_rate(arena, n, args.rollout_steps, d, args.repeats)
+            if "evaluate" in measures:
+                row["evaluate_steps_per_s"] = evaluate_rate(arena, n, args.rollout_steps, d, args.repeats)
             if args.ppo_steps:
                 row["ppo_steps_per_s"], row["ppo_return"] = ppo_rate(arena, config, n, args.ppo_steps, d)
             results[f"{scaling}/{d}"] = row
             base = results[f"{scaling}/{counts[0]}"]
-            print(f"{scaling:6s} {d} device(s) {n:8d} arenas: rollout {row['rollout_steps_per_s']:.4g} steps/s "
-                  f"({row['rollout_steps_per_s'] / base['rollout_steps_per_s']:.2f}x), "
-                  f"evaluate {row['evaluate_steps_per_s']:.4g} steps/s "
-                  f"({row['evaluate_steps_per_s'] / base['evaluate_steps_per_s']:.2f}x)"
-                  + (f", ppo {row['ppo_steps_per_s']:.4g} steps/s "
-                     f"({row['ppo_steps_per_s'] / base['ppo_steps_per_s']:.2f}x), return {row['ppo_return']:.1f}"
-                     if args.ppo_steps else ""), flush=True)
+            rates = [f"{what} {row[f'{what}_steps_per_s']:.4g} steps/s "
+                     f"({row[f'{what}_steps_per_s'] / base[f'{what}_steps_per_s']:.2f}x)"
+                     for what in ("rollout", "evaluate", "ppo") if f"{what}_steps_per_s" in row]
+            print(f"{scaling:6s} {d} device(s) {n:8d} arenas: " + ", ".join(rates)
+                  + (f", return {row['ppo_return']:.1f}" if args.ppo_steps else ""), flush=True)
     print(json.dumps({"results": results, "environment": environment(arena=args.arena,
                                                                       devices=len(jax.local_devices()))}, indent=2))
 

@@ -91,6 +91,13 @@ def edge_handles(mesh: ClothMesh) -> np.ndarray:
     return np.concatenate([handles(mesh), np.array([mesh.index(i, j) for i, j in quarters], np.int32)])
 
 
+def interior_handles(mesh: ClothMesh, side: int) -> np.ndarray:
+    """int32 (side^2,): a ``side x side`` grid of particles inside the cloth, at the centres of equal cells."""
+    rows = np.round((np.arange(side) + 0.5) * (mesh.rows - 1) / side).astype(int)
+    cols = np.round((np.arange(side) + 0.5) * (mesh.cols - 1) / side).astype(int)
+    return np.array([mesh.index(i, j) for i in rows for j in cols], np.int32)
+
+
 def pull(positions: jax.Array, handles: jax.Array, targets: jax.Array, eligible: jax.Array, pickers: int,
          spacing: float, coordinates: str) -> tuple[jax.Array, jax.Array]:
     """The oracles' move: pick the ``pickers`` eligible handles farthest from their targets and place them there.

@@ -61,13 +61,13 @@ def test_the_lookahead_takes_the_proposal_that_covers_most():
             def after(a):
                 return coverage.normalised_coverage(model.step(start, a)[0].physics.positions, mesh)
             positions = start.physics.positions
-            tried = proposals(positions, flat_goal(positions, mesh, 0.15), mesh, 1, "pixel", 0.15)
+            tried = proposals(positions, flat_goal(positions, mesh, 0.15), mesh, 1, "pixel", 0.25, 4)
             return coverage.normalised_coverage(positions, mesh), jax.vmap(after)(tried), after(action)
 
         return jax.vmap(one)(privileged, taken)
 
     now, tried, taken = (np.asarray(x) for x in check(crumpled_episodes(arena, 3)[0]))
-    assert tried.shape == (3, 33)
+    assert tried.shape == (3, 33 + 16)  # the defaults: 16 edge handles twice, 4 x 4 inner particles
     assert (now < 0.9).all(), now  # the oracle acts (it idles from 0.999)
     for i in range(3):
         assert len(np.unique(tried[i])) > 3, tried[i]  # the proposals differ
@@ -94,3 +94,60 @@ def test_the_lookahead_needs_the_arena_it_simulates():
         build_agent("oracle_cloth_flattening")
     with pytest.raises(ConfigError, match="cannot plan in arena"):
         build_agent("oracle_cloth_flattening", {"arena": "gym|id:CartPole-v1"})
+
+
+def test_the_fit_residual_is_zero_for_a_flat_cloth_and_grows_with_a_fold():
+    from jarena.arenas.cloth.mesh import ClothMesh
+    from jarena_agents.oracles.cloth_flattening import fit_residual
+
+    mesh = ClothMesh(rows=10, cols=10, spacing=0.04)
+    flat = np.asarray(mesh.rest_positions, np.float32)
+    angle = 0.7  # any rigid motion in the plane, mirrored too, fits exactly
+    rotation = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]])
+    moved = flat @ rotation.T * np.array([1, -1, 1]) + np.array([0.05, -0.02, 0.0])
+    assert float(fit_residual(jnp.asarray(moved, jnp.float32), mesh)) < 1e-5
+    folded = flat.copy()
+    right = folded[:, 0] > 0  # the right half laid over the left, a layer up
+    folded[right, 0] *= -1
+    folded[right, 2] += 0.03
+    assert float(fit_residual(jnp.asarray(folded), mesh)) > 0.03
+
+
+def test_interior_proposals_put_inner_particles_at_their_goals_and_the_score_counts_the_residual():
+    from jarena.arenas.cloth import coverage
+    from jarena_agents.oracles import cloth_actions
+    from jarena_agents.oracles.cloth_flattening import fit_residual, flat_goal, proposals
+    from jarena_agents.planners.model import arena_model
+
+    arena = jarena.build_arena(LOOKAHEAD_ARENA)
+    config = {"arena": LOOKAHEAD_ARENA, "interior": 3, "outward": 0.15, "unfold_weight": 2.0}
+    oracle = build_agent("oracle_cloth_flattening", config)
+    model = arena_model(arena)
+
+    @jax.jit
+    def check(episodes):
+        state, info = jax.vmap(lambda e: arena.reset(episode=e))(episodes)
+        privileged = jax.vmap(arena.privileged)(state)
+        taken, _ = oracle.act(oracle.init(jax.random.key(0), arena.spec, episodes.shape[0]), info,
+                              jax.random.key(1), privileged)
+        mesh = privileged.physics.mesh
+
+        def one(start, action):
+            def score(a):
+                after = model.step(start, a)[0].physics.positions
+                return coverage.normalised_coverage(after, mesh) - 2.0 * fit_residual(after, mesh)
+            positions = start.physics.positions
+            goal = flat_goal(positions, mesh, 0.15)
+            tried = proposals(positions, goal, mesh, 1, "pixel", 0.15, 3)
+            inner = jnp.asarray(cloth_actions.interior_handles(mesh, 3))
+            expected = jax.vmap(lambda p, q: cloth_actions.encode(p[None], q[None], "pixel"))(
+                positions[inner, :2], goal[inner])
+            return tried, expected, jax.vmap(score)(tried), score(action)
+
+        return jax.vmap(one)(privileged, taken)
+
+    tried, expected, scores, taken = (np.asarray(x) for x in check(crumpled_episodes(arena, 2)[0]))
+    assert tried.shape == (2, 33 + 9, 4)
+    np.testing.assert_allclose(tried[:, 33:], expected, atol=1e-6)  # the last 9: inner particles to their goals
+    for i in range(2):
+        assert taken[i] == scores[i].max(), (taken[i], scores[i])
