@@ -92,7 +92,8 @@ def edge_handles(mesh: ClothMesh) -> np.ndarray:
 
 
 def interior_handles(mesh: ClothMesh, side: int) -> np.ndarray:
-    """int32 (side^2,): a ``side x side`` grid of particles inside the cloth, at the centres of equal cells."""
+    """int32 (side^2,): a ``side x side`` grid of particles inside the cloth, at the centres of equal cells
+    (none for side 0)."""
     rows = np.round((np.arange(side) + 0.5) * (mesh.rows - 1) / side).astype(int)
     cols = np.round((np.arange(side) + 0.5) * (mesh.cols - 1) / side).astype(int)
     return np.array([mesh.index(i, j) for i in rows for j in cols], np.int32)

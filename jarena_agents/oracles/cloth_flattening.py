@@ -119,7 +119,7 @@ def proposals(positions: jax.Array, goal: jax.Array, mesh: ClothMesh, pickers: i
     pick = positions[handles, :2]
     away = pick - centre_xy(positions)
     away = away / (jnp.sqrt(dot(away, away))[:, None] + 1e-6)
-    inner = jnp.asarray(cloth_actions.interior_handles(mesh, interior)) if interior else jnp.zeros((0,), jnp.int32)
+    inner = jnp.asarray(cloth_actions.interior_handles(mesh, interior))  # (0,) for interior 0
     picks = jnp.concatenate([pick, pick, positions[inner, :2]])
     places = jnp.concatenate([goal[handles], pick + outward * away, goal[inner]])
     analytic = analytic_pull(positions, goal, mesh, pickers, coordinates)
