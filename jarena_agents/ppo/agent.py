@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
+from jarena import distributed
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.batching import batch_reset, batch_step
@@ -221,6 +222,7 @@ def make_ppo(config=None) -> Agent:
                 lambda x: x.reshape((cfg.rollout_length // unroll, unroll) + x.shape[1:]).swapaxes(0, 1)
                 .reshape((unroll, -1) + x.shape[2:]), samples)
             sample_axis = 1
+        samples = distributed.replicate(samples)  # on a mesh: gathered once, so each epoch's shuffle is local
 
         def loss_fn(params, mb):
             policy_out, values = forward(spec, params, stats, mb["observation"])
@@ -235,10 +237,12 @@ def make_ppo(config=None) -> Agent:
             return terms.total, terms
 
         def sgd_step(carry, mb):
-            params, opt_state = carry
-            grads, terms = jax.grad(loss_fn, has_aux=True)(params, mb)
+            # data parallel over the devices of a mesh (jarena.distributed): each device takes its share of the
+            # minibatch, the parameters stay whole on each, and XLA all-reduces the gradients
+            params, opt_state = distributed.replicate(carry)
+            grads, terms = jax.grad(loss_fn, has_aux=True)(params, distributed.split_batch(mb, axis=sample_axis))
             updates, opt_state = optimizer().update(grads, opt_state, params)
-            return (optax.apply_updates(params, updates), opt_state), terms
+            return distributed.replicate((optax.apply_updates(params, updates), opt_state)), terms
 
         def epoch(carry, key):
             count = jax.tree_util.tree_leaves(samples)[0].shape[sample_axis]
