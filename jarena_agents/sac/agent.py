@@ -30,6 +30,7 @@ import numpy as np
 import optax
 from flax import struct
 
+from jarena import distributed
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.batching import batch_reset, batch_step
@@ -285,7 +286,10 @@ def make_sac(config=None) -> TrainableAgent:
 
     def gradient_step(spec: ArenaSpec, buffer_state: BufferState, learner: _Learner, key):
         sample_key, next_key, actor_key = jax.random.split(key, 3)
-        batch = buffer.sample(buffer_state, sample_key).experience
+        # data parallel over the devices of a mesh (jarena.distributed): each device takes its share of the
+        # minibatch, the networks stay whole on each, and XLA all-reduces the gradients
+        learner = distributed.replicate(learner)
+        batch = distributed.split_batch(buffer.sample(buffer_state, sample_key).experience)
         alpha = jnp.exp(learner.log_alpha)
         net = actor(spec)
 
@@ -327,6 +331,7 @@ def make_sac(config=None) -> TrainableAgent:
                                                                      cfg.tau),
                            log_alpha=log_alpha, actor_opt_state=actor_opt_state, critic_opt_state=critic_opt_state,
                            alpha_opt_state=alpha_opt_state)
+        learner = distributed.replicate(learner)
         metrics = dict(critic_loss=critic_terms.loss, actor_loss=actor_value, alpha_loss=alpha_value, alpha=alpha,
                        entropy=-jnp.mean(log_prob), q=0.5 * (critic_terms.q1 + critic_terms.q2),
                        target_q=critic_terms.target)
