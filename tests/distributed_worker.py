@@ -49,6 +49,8 @@ agent = jarena_agents.build_agent(args.agent, config)
 result = train_and_evaluate(agent, arena, jax.random.key(0), chunk_updates=1, validate_every=1, progress=False,
                             devices=args.devices, run_dir=f"{args.out}/run", checkpoint_every=1,
                             stop_after_chunks=args.stop_after, eval_videos=0)
+if result.evaluation is None:  # stopped: the checkpoints are what the next launch resumes from (and compares)
+    sys.exit(0)
 # a random agent's rollout on the run's devices: the same steps as on one device
 rollout = jarena.perform_parallel(jarena_agents.build_agent("random"), arena, jax.random.key(3), 8, 40,
                                   devices=args.devices)
@@ -70,8 +72,6 @@ else:
 untrained = jax.device_get(agent.policy(jax.jit(agent.init_training, static_argnums=1)(jax.random.key(1), arena),
                                         arena.spec, False))
 fixed = evaluate(agent, arena, jax.random.key(2), agent_state=untrained, devices=args.devices)
-if result.evaluation is None:  # stopped: the checkpoints are what the next launch resumes from
-    sys.exit(0)
 leaves = jax.tree_util.tree_leaves(distributed.fetch(result.train_state))
 leaves = [jax.random.key_data(x) if jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key) else x for x in leaves]
 batch = [x for x in jax.tree_util.tree_leaves(result.train_state)

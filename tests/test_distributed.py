@@ -42,9 +42,12 @@ def _run_all(commands: list[list[str]], env: dict) -> list[str]:
 
 
 def _cpu_devices(count: int) -> dict:
-    """The environment of a subprocess whose CPU is split into ``count`` JAX devices."""
+    """The environment of a subprocess whose CPU is split into ``count`` JAX devices. XLA's backend (LLVM)
+    optimisation is off: these runs are tiny and compare what programs compute, not how fast, and each process
+    compiles its programs itself (the processes of a run concurrently, so none finds the others' in the
+    persistent cache), which unoptimised takes about half the time."""
     return dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={count} "
-                "--xla_cpu_multi_thread_eigen=false", JAX_PLATFORMS="cpu")
+                "--xla_cpu_multi_thread_eigen=false --xla_backend_optimization_level=0", JAX_PLATFORMS="cpu")
 
 
 def _launch(out: Path, agent: str, devices: str, *, cpu_devices: int, processes: int = 1,

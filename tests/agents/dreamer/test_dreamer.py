@@ -64,13 +64,14 @@ def test_training_trains_model_actor_and_critic_and_resumes_bit_for_bit(pendulum
 
 
 def test_dreamer_learns_to_swing_the_pendulum_up():
-    """4,000 decisions (16,000 control steps, action repeat 4) of a small Dreamer: the actor's mode swings the
-    pendulum up better than uniform random actions, which get about -1,250 on the same episodes."""
+    """4,000 decisions (16,000 control steps, action repeat 4) of a small Dreamer, 50 gradient steps per 200
+    decisions with a 10-step imagination: the actor's mode swings the pendulum up better than uniform random
+    actions, which get about -1,250 on the same episodes (seeds 0-2 gave -324 to -578)."""
     arena = jarena.build_arena("classic|domain:pendulum,action:repeat(4)")
-    config = dict(num_arenas=8, rollout_length=25, train_steps=100, batch_size=16, sequence_length=25,
+    config = dict(num_arenas=8, rollout_length=25, train_steps=50, batch_size=16, sequence_length=25,
                   buffer_size=8 * 2000, learning_starts=400, total_steps=4000, deter=64, stoch=8, classes=8,
                   hidden=64, layers=1, model_learning_rate=1e-3, actor_learning_rate=1e-4, critic_learning_rate=1e-4,
-                  discount=0.99)
+                  discount=0.99, imagination_horizon=10)
     agent = jarena_agents.build_agent("dreamer", config)
     ts = jax.jit(agent.init_training, static_argnums=1)(jax.random.key(0), arena)
     ts, metrics = jax.jit(agent.train, static_argnums=(1, 2))(ts, arena, agent.settings.num_updates)
