@@ -1,3 +1,4 @@
+import importlib
 import os
 import subprocess
 import sys
@@ -40,6 +41,30 @@ def test_evaluate_is_deterministic_and_independent_of_batch(arena):
     full = jarena.evaluate(agent, arena, jax.random.key(0))
     some = jarena.evaluate(agent, arena, jax.random.key(1), episodes=[3, 7])
     np.testing.assert_array_equal(full.returns[[3, 7]], some.returns)
+
+
+def test_evaluate_checks_for_the_end_every_few_steps_without_changing_results(arena, monkeypatch):
+    evaluate_module = importlib.import_module("jarena.runners.evaluate")  # (the package exports the function)
+
+    assert [evaluate_module.steps_per_check(m, 2) for m in (10, 30, 63, 64, 200, 1000)] == [1, 1, 1, 2, 5, 8]
+    assert evaluate_module.steps_per_check(1000, 1) == 1
+    agent = jarena_agents.build_agent("random")
+    runs = {}
+    for block in (1, 3, 7):  # 7 does not divide 30: its last block runs past the cap, frozen
+        monkeypatch.setattr(evaluate_module, "steps_per_check", lambda max_steps, devices, block=block: block)
+        evaluate_module._compiled_episodes.cache_clear()
+        runs[block] = evaluate_module.run_episodes(agent, arena, jax.random.key(0), episodes=range(16), max_steps=30,
+                                                   filmed=3)
+    evaluate_module._compiled_episodes.cache_clear()
+    base, base_film = runs[1]
+    assert (base.lengths < 30).sum() >= 4 and (base.lengths == 30).sum() >= 1, base.lengths  # ended early, capped
+    for block in (3, 7):
+        result, film = runs[block]
+        np.testing.assert_array_equal(result.lengths, base.lengths)
+        np.testing.assert_array_equal(result.returns, base.returns)
+        np.testing.assert_array_equal(result.successes, base.successes)
+        for a, b in zip(jax.tree_util.tree_leaves(film), jax.tree_util.tree_leaves(base_film), strict=True):
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
 def test_validate_uses_the_val_split(arena):
