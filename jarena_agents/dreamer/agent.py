@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
+from jarena import distributed
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.batching import batch_reset
@@ -248,12 +249,14 @@ def make_dreamer(config=None) -> TrainableAgent:
 
         def gradient_step(learner: Learner, key):
             model_key, behaviour_key = jax.random.split(key)
+            learner = distributed.replicate(learner)  # on a mesh: the networks whole on each device
             model_params, model_state, model_metrics, latents = online.model_step(
                 model, model_opt, buffer, running.buffer, learner.model, learner.model_opt, model_key)
             learner = learner.replace(model=model_params, model_opt=model_state)
             starts = jax.tree_util.tree_map(lambda x: x.reshape((-1,) + x.shape[2:]), latents)
-            learner, behaviour_metrics = behaviour_step(spec, learner, jax.lax.stop_gradient(starts), behaviour_key)
-            return learner, {**model_metrics, **behaviour_metrics}
+            starts = distributed.split_batch(jax.lax.stop_gradient(starts))  # each device imagines from its share
+            learner, behaviour_metrics = behaviour_step(spec, learner, starts, behaviour_key)
+            return distributed.replicate(learner), {**model_metrics, **behaviour_metrics}
 
         ready = (env_steps >= cfg.learning_starts) & buffer.can_sample(running.buffer)
         learner, metrics = online.learn_when_ready(ready, gradient_step, ts.learner, learn_key, cfg.gradient_steps,

@@ -17,6 +17,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jarena import distributed
 from jarena.core.arena import Arena
 from jarena.core.batching import batch_step
 from jarena.core.types import Info
@@ -145,8 +146,13 @@ def episode_metrics(record: dict) -> dict:
 def model_step(model: wm.WorldModel, optimizer, buffer, buffer_state, params: dict, opt_state, key: jax.Array):
     """One world-model gradient step on a window batch: ``(params, opt_state, metrics, posterior latents (S, L+1))``."""
     sample_key, loss_key = jax.random.split(key)
-    seq = wm.sequences_from_windows(model.spec, buffer.sample(buffer_state, sample_key).experience)
+    # data parallel over the devices of a mesh (jarena.distributed): each device takes its share of the sequences,
+    # the model stays whole on each, and XLA all-reduces the gradients
+    params, opt_state = distributed.replicate((params, opt_state))
+    seq = distributed.split_batch(wm.sequences_from_windows(model.spec,
+                                                            buffer.sample(buffer_state, sample_key).experience))
     params, opt_state, metrics, latents = wm.gradient_step(model, optimizer, params, opt_state, seq, loss_key)
+    params, opt_state = distributed.replicate((params, opt_state))
     return params, opt_state, {k: metrics[k] for k in MODEL_METRICS}, latents
 
 
