@@ -22,6 +22,7 @@ import time
 
 import jax
 import numpy as np
+import yaml
 from timing import environment
 
 import jarena
@@ -82,6 +83,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--ppo-steps", type=int, default=0, help="PPO environment steps per run (0: no PPO)")
     parser.add_argument("--ppo-config", default="default", help="config name under configs/ppo/<arena>/")
+    parser.add_argument("--ppo-set", default="", help="PPO settings over the config, key=value,... "
+                        "(values as YAML), e.g. minibatches=8")
     parser.add_argument("--devices", default="1,all", help="device counts to compare, the first the baseline")
     parser.add_argument("--measure", default="rollout,evaluate",
                         help="what to time besides PPO (which --ppo-steps turns on): rollout, evaluate, both (default) "
@@ -91,19 +94,22 @@ def main() -> None:
     arena = jarena.build_arena(args.arena)
     counts = sorted({int(c) if c != "all" else len(jax.local_devices()) for c in args.devices.split(",")})
     config = jarena.retrieve_config("ppo", arena, args.ppo_config) if args.ppo_steps else None
-    if args.ppo_steps:  # the largest batch (weak scaling's last) must still make 2 updates: check before any run
-        largest = jarena_agents.build_agent("ppo", dict(config, num_arenas=args.arenas * counts[-1],
-                                                       total_steps=args.ppo_steps)).settings
-        if largest.num_updates < 2:
-            raise SystemExit(f"--ppo-steps {args.ppo_steps} is {largest.num_updates} PPO update of "
-                             f"{largest.steps_per_update} steps at {args.arenas * counts[-1]} arenas; the rate is "
-                             "measured after the first chunk: give at least 2 updates' worth")
+    if config is not None and args.ppo_set:
+        config = dict(config, **{k: yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in args.ppo_set.split(","))})
     measures = set(args.measure.split(",")) - {"none"}
     if measures - {"rollout", "evaluate"}:
         raise SystemExit(f"--measure {args.measure!r}: give rollout, evaluate, rollout,evaluate or none")
     scalings = [s for s in ("weak", "strong") if s in args.scaling.split(",")]
     if not scalings or set(args.scaling.split(",")) - {"weak", "strong"}:
         raise SystemExit(f"--scaling {args.scaling!r}: give weak, strong or weak,strong")
+    if args.ppo_steps:  # the largest batch must still make 2 updates: check before any run
+        largest_batch = args.arenas * (counts[-1] if "weak" in scalings else 1)
+        largest = jarena_agents.build_agent("ppo", dict(config, num_arenas=largest_batch,
+                                                       total_steps=args.ppo_steps)).settings
+        if largest.num_updates < 2:
+            raise SystemExit(f"--ppo-steps {args.ppo_steps} is {largest.num_updates} PPO update of "
+                             f"{largest.steps_per_update} steps at {largest_batch} arenas; the rate is "
+                             "measured after the first chunk: give at least 2 updates' worth")
     results = {}
     for scaling in scalings:
         for d in counts:

@@ -27,7 +27,7 @@ from jarena.core.batching import batch_reset, batch_step
 from jarena.core.types import ArenaState, Info
 from jarena_agents import networks, normalizer
 from jarena_agents.config import ArenaSchedule, at_least, in_unit_interval, make_config, non_negative, positive
-from jarena_agents.ppo.losses import compute_gae, ppo_loss
+from jarena_agents.ppo.losses import compute_gae, ppo_loss, standardized
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
 
@@ -233,12 +233,19 @@ def make_ppo(config=None) -> Agent:
             logp = networks.log_prob(spec.action, policy_out, mb["raw_action"])
             terms = ppo_loss(logp, mb["log_prob"], advantages, values, mb["value"], returns,
                              networks.entropy(spec.action, policy_out), clip_epsilon=cfg.clip_epsilon,
-                             value_coef=cfg.value_coef, entropy_coef=cfg.entropy_coef)
+                             value_coef=cfg.value_coef, entropy_coef=cfg.entropy_coef,
+                             normalize_advantages=unroll is not None)
             return terms.total, terms
 
         def sgd_step(carry, mb):
             # data parallel over the devices of a mesh (jarena.distributed): each device takes its share of the
             # minibatch, the parameters stay whole on each, and XLA all-reduces the gradients
+            if unroll is None:
+                # the minibatch is whole on every device here (samples are replicated), so its advantages are
+                # normalised locally: inside the loss, on the split minibatch, the mean and the variance would
+                # be two more all-reduces, each waited for, in every gradient step
+                mb = distributed.replicate(mb)
+                mb = dict(mb, advantages=standardized(mb["advantages"]))
             params, opt_state = distributed.replicate(carry)
             grads, terms = jax.grad(loss_fn, has_aux=True)(params, distributed.split_batch(mb, axis=sample_axis))
             updates, opt_state = optimizer().update(grads, opt_state, params)

@@ -52,6 +52,11 @@ class PPOLossTerms:
     clip_fraction: jax.Array
 
 
+def standardized(advantages: jax.Array) -> jax.Array:
+    """Advantages of a minibatch (any shape) shifted to mean 0 and scaled to standard deviation 1."""
+    return (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+
+
 def ppo_loss(log_prob: jax.Array, old_log_prob: jax.Array, advantages: jax.Array, values: jax.Array,
              old_values: jax.Array, returns: jax.Array, entropy: jax.Array, *, clip_epsilon: float = 0.2,
              value_coef: float = 0.5, entropy_coef: float = 0.0, value_clip: float | None = None,
@@ -63,7 +68,7 @@ def ppo_loss(log_prob: jax.Array, old_log_prob: jax.Array, advantages: jax.Array
     ``total = policy + value_coef * value - entropy_coef * mean(entropy)``.
     """
     if normalize_advantages:
-        advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+        advantages = standardized(advantages)
     log_ratio = log_prob - old_log_prob
     ratio = jnp.exp(log_ratio)
     unclipped = ratio * advantages
