@@ -251,20 +251,26 @@ def _list_kernel(radius_ref, offsets_ref, x_ref, cell_ref, order_ref, sorted_cel
         """``visit(carry, q, d2, valid)`` for every candidate ``q`` of the 27 cells, in the order read."""
         def candidate(t, state):
             run, first, end, key, carry = state
-            later = t >= end  # the run is read: the next one
+            active = t < total
+            later = active & (t >= end)  # the run is read: the next one
             run = run + later.astype(jnp.int32)
             row = jnp.minimum(run, 26) * n_pad + p
-            first = jnp.where(later, first_s[row], first)
-            end = jnp.where(later, end_s[row], end)
-            key = jnp.where(later, key_s[row], key)
+            # only the lanes moving to their next run read it (masked loads: the others issue no read)
+            first = plgpu.load(first_s.at[row], mask=later, other=first)
+            end = plgpu.load(end_s.at[row], mask=later, other=end)
+            key = plgpu.load(key_s.at[row], mask=later, other=key)
             place = jnp.clip(first + t, 0, n - 1)
-            q = order_ref[place]
-            same = sorted_cell_ref[place] == key  # q lies in the cell queried (not a hash collision)
+            # a particle done with its candidates (most are, in most iterations: the busiest sets the count)
+            # reads nothing more
+            q = plgpu.load(order_ref.at[place], mask=active, other=0)
+            # q lies in the cell queried (not a hash collision)
+            same = active & (plgpu.load(sorted_cell_ref.at[place], mask=active, other=0) == key)
             qi = jax.lax.div(q, jnp.int32(cols))  # q >= 0
             adjacent = (jnp.abs(qi - i) <= 1) & (jnp.abs(q - qi * cols - j) <= 1)
-            d = [x_ref[q + a * n_pad] - x[a] for a in range(3)]
+            near = same & ~adjacent
+            d = [plgpu.load(x_ref.at[q + a * n_pad], mask=near, other=0.0) - x[a] for a in range(3)]
             d2 = collision.dot_list(d, d)
-            return run, first, end, key, visit(carry, q, d2, (t < total) & same & ~adjacent & (d2 < r2))
+            return run, first, end, key, visit(carry, q, d2, near & (d2 < r2))
 
         state = (zeros, first_s[0:n_pad], end_s[0:n_pad], key_s[0:n_pad], carry)
         return jax.lax.fori_loop(0, jnp.max(total), candidate, state)[-1]
@@ -280,7 +286,9 @@ def _list_kernel(radius_ref, offsets_ref, x_ref, cell_ref, order_ref, sorted_cel
 
     def from_kept(visit, carry):
         def one(k, carry):
-            return visit(carry, found_s[k * n_pad + p], d2_s[k * n_pad + p], k < found)
+            listed = k < found
+            return visit(carry, plgpu.load(found_s.at[k * n_pad + p], mask=listed, other=0),
+                         plgpu.load(d2_s.at[k * n_pad + p], mask=listed, other=0.0), listed)
         return jax.lax.fori_loop(0, jnp.max(found), one, carry)
 
     def count_within(counts, q, d2, valid):
