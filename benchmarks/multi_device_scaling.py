@@ -22,11 +22,11 @@ import time
 
 import jax
 import numpy as np
-import yaml
 from timing import environment
 
 import jarena
 import jarena_agents
+from jarena.cli import parse_override
 from jarena.training import train_and_evaluate
 
 
@@ -83,8 +83,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--ppo-steps", type=int, default=0, help="PPO environment steps per run (0: no PPO)")
     parser.add_argument("--ppo-config", default="default", help="config name under configs/ppo/<arena>/")
-    parser.add_argument("--ppo-set", default="", help="PPO settings over the config, key=value,... "
-                        "(values as YAML), e.g. minibatches=8")
+    parser.add_argument("--ppo-set", action="append", type=parse_override, default=[], metavar="KEY=VALUE",
+                        help="a PPO setting over the config (value as YAML), e.g. minibatches=8; repeatable")
     parser.add_argument("--devices", default="1,all", help="device counts to compare, the first the baseline")
     parser.add_argument("--measure", default="rollout,evaluate",
                         help="what to time besides PPO (which --ppo-steps turns on): rollout, evaluate, both (default) "
@@ -94,8 +94,8 @@ def main() -> None:
     arena = jarena.build_arena(args.arena)
     counts = sorted({int(c) if c != "all" else len(jax.local_devices()) for c in args.devices.split(",")})
     config = jarena.retrieve_config("ppo", arena, args.ppo_config) if args.ppo_steps else None
-    if config is not None and args.ppo_set:
-        config = dict(config, **{k: yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in args.ppo_set.split(","))})
+    if config is not None:
+        config = dict(config, **dict(args.ppo_set))
     measures = set(args.measure.split(",")) - {"none"}
     if measures - {"rollout", "evaluate"}:
         raise SystemExit(f"--measure {args.measure!r}: give rollout, evaluate, rollout,evaluate or none")

@@ -21,9 +21,10 @@ from typing import Any
 import yaml
 
 
-def _parse_override(text: str) -> tuple[str, Any]:
+def parse_override(text: str) -> tuple[str, Any]:
+    """``"key=value"`` -> ``(key, value)``, the value read as YAML (an argparse ``type`` for config overrides)."""
     if "=" not in text:
-        raise argparse.ArgumentTypeError(f"--set expects key=value, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected key=value, got {text!r}")
     key, value = text.split("=", 1)
     return key.strip(), yaml.safe_load(value)
 
@@ -293,7 +294,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the whole run")
     p.add_argument("--run-dir", default=None, help="write logs, results and a learning-curve plot here")
     p.add_argument("--config", default="default", help="config name under configs/<agent>/<arena>/")
-    p.add_argument("--set", action="append", type=_parse_override, metavar="KEY=VALUE",
+    p.add_argument("--set", action="append", type=parse_override, metavar="KEY=VALUE",
                    help="override a config key (repeatable)")
     p.add_argument("--select", default="best", choices=["best", "last"],
                    help="which policy the final evaluation runs: the one with the best validation return (ties: "
@@ -325,7 +326,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=int, default=None, help="only the first N episodes of the split")
     p.add_argument("--seed", type=int, default=0, help="seed of the agent's randomness")
     p.add_argument("--config", default="default", help="config name under configs/<agent>/<arena>/")
-    p.add_argument("--set", action="append", type=_parse_override, metavar="KEY=VALUE",
+    p.add_argument("--set", action="append", type=parse_override, metavar="KEY=VALUE",
                    help="override a config key (repeatable)")
     p.add_argument("--checkpoint", default=None, metavar="RUN_DIR",
                    help="evaluate a training run's policy (see --select)")
@@ -358,7 +359,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "number of trajectories already stored, so each run adds new episodes)")
     p.add_argument("--config", default="default",
                    help="agent config name under configs/<agent>/<arena>/ (default: default)")
-    p.add_argument("--set", action="append", type=_parse_override, metavar="KEY=VALUE",
+    p.add_argument("--set", action="append", type=parse_override, metavar="KEY=VALUE",
                    help="override a config key of the agent (repeatable)")
     p.add_argument("--batch", type=int, default=None, metavar="B",
                    help="arenas run in parallel (default: min(N, 64))")
@@ -379,7 +380,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="episode id(s), 0.. are the eval split's; several are tiled into a grid")
     p.add_argument("--seed", type=int, default=0, help="seed of the agent's randomness")
     p.add_argument("--config", default="default", help="config name under configs/<agent>/<arena>/")
-    p.add_argument("--set", action="append", type=_parse_override, metavar="KEY=VALUE",
+    p.add_argument("--set", action="append", type=parse_override, metavar="KEY=VALUE",
                    help="override a config key (repeatable)")
     p.add_argument("--checkpoint", default=None, metavar="RUN_DIR",
                    help="film a training run's policy (see --select)")

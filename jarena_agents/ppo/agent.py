@@ -241,9 +241,9 @@ def make_ppo(config=None) -> Agent:
             # data parallel over the devices of a mesh (jarena.distributed): each device takes its share of the
             # minibatch, the parameters stay whole on each, and XLA all-reduces the gradients
             if unroll is None:
-                # the minibatch is whole on every device here (samples are replicated), so its advantages are
-                # normalised locally: inside the loss, on the split minibatch, the mean and the variance would
-                # be two more all-reduces, each waited for, in every gradient step
+                # the samples are whole on every device, so the minibatch's advantages are normalised locally;
+                # without this hint the partitioner would carry the split below back into the normalisation,
+                # and its mean and variance would be two more all-reduces, each waited for, per gradient step
                 mb = distributed.replicate(mb)
                 mb = dict(mb, advantages=standardized(mb["advantages"]))
             params, opt_state = distributed.replicate(carry)
