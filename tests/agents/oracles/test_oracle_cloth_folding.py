@@ -93,17 +93,16 @@ def test_the_lookahead_takes_the_fold_that_ends_nearest_the_goal():
         mesh = privileged.physics.mesh
 
         def one(start, goal, action):
-            tried, valid = fold_proposals(start.physics.positions, goal.reshape(-1, 3), mesh, 1, "pixel", (0.7, 1.0))
-            return jax.vmap(lambda a: model.step(start, a)[1])(tried), valid, model.step(start, action)[1]
+            tried = fold_proposals(start.physics.positions, goal.reshape(-1, 3), mesh, 1, "pixel", (0.7, 1.0))
+            return jax.vmap(lambda a: model.step(start, a)[1])(tried), model.step(start, action)[1]
 
         return jax.vmap(one)(privileged, info.goal, taken)
 
-    tried, valid, taken = (np.asarray(x) for x in check(jnp.arange(2)))
-    assert tried.shape == valid.shape == (2, 2 + 17 * 2)
+    tried, taken = (np.asarray(x) for x in check(jnp.arange(2)))
+    assert tried.shape == (2, 2 + 21 * 2)
     for i in range(2):
-        assert 0 < valid[i].sum() < valid.shape[1]  # only the folding side's handles are proposed
-        assert len(np.unique(tried[i][valid[i]])) > 3, tried[i]  # the proposals differ
-        assert taken[i] == tried[i][valid[i]].max(), (taken[i], tried[i])  # reward: -normalised fold distance
+        assert len(np.unique(tried[i])) > 3, tried[i]  # the proposals differ
+        assert taken[i] == tried[i].max(), (taken[i], tried[i])  # reward: -normalised fold distance
         assert taken[i] >= tried[i, 0]  # never worse than the analytic fold
         assert taken[i] > tried[i, 1]  # folding beats doing nothing on a flat cloth
 
@@ -115,3 +114,29 @@ def test_the_lookahead_needs_the_arena_it_simulates_and_fractions_toward_the_goa
         build_agent("oracle_cloth_folding", {"lookahead": False, "fractions": (0.5, 2.0)})
     with pytest.raises(ConfigError, match="fractions"):
         build_agent("oracle_cloth_folding", {"lookahead": False, "fractions": ()})
+
+
+@pytest.mark.parametrize("cols", [16, 40])
+def test_a_tip_pinch_grasps_each_corner_alone(cols):
+    from jarena.arenas.cloth.mesh import ClothMesh
+    from jarena.arenas.cloth.physics import ClothPhysics
+    from jarena_agents.oracles.cloth_folding import tip_offsets
+
+    mesh = ClothMesh.of_size(0.4, 0.4, cols=cols)
+    physics = ClothPhysics(mesh, solver="xla")
+    params = physics.default_params()
+    rest = jnp.asarray(mesh.rest_positions)
+    turn = jnp.array([[0.8, -0.6, 0.0], [0.6, 0.8, 0.0], [0.0, 0.0, 1.0]], jnp.float32)  # any pose in the plane
+    state = physics.state_from_positions(rest @ turn.T + jnp.array([0.05, -0.02, float(params.particle_radius)]))
+    corners = cloth_actions.handles(mesh)[:4]
+    tips = state.positions[corners, :2] + tip_offsets(state.positions, mesh)
+
+    @jax.jit
+    def grasp(tip):  # the picker moves above the tip and closes at the pick height
+        start = state.replace(picker_positions=jnp.concatenate([tip, jnp.full((1,), 0.01)])[None])
+        return physics.step(start, jnp.array([[0.0, 0.0, 0.0, 1.0]]), params).held[0]
+
+    for corner, tip in zip(corners, tips, strict=True):
+        held = np.asarray(grasp(tip))
+        assert held[held >= 0].tolist() == [corner]  # a pinch on the corner itself takes its neighbours too
+        assert (np.asarray(grasp(state.positions[corner, :2])) >= 0).sum() >= 3
