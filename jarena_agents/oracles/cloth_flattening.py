@@ -8,9 +8,11 @@ spirit of Agent-Arena's ``oracle-towel``), for the ``cloth`` arenas' pick-and-pl
 2. propose pulls: each of 16 edge handles (corners, edge midpoints and quarter points) placed at its goal
    position, or ``outward`` metres farther from the cloth's centre (which opens a crumpled cloth where the
    fitted goal is still a poor guess); each of an ``interior x interior`` grid of inner particles placed at
-   its goal (a fold's top layer put back); and the analytic pull: among the corners and edge midpoints (``K``
-   pickers: the ``K`` worst), the handle farthest from its goal to its goal, preferring particles on top
-   (a covered one counts a quarter of its distance: the pickers grasp the top layer);
+   its goal (a fold's top layer put back); each corner pinched at its tip (``tips``,
+   :func:`.cloth_actions.tip_offsets`: the picker takes the corner alone, not the 2.8 cm patch around it)
+   placed at its goal; and the analytic pull: among the corners and edge midpoints (``K`` pickers: the ``K``
+   worst), the handle farthest from its goal to its goal, preferring particles on top (a covered one counts a
+   quarter of its distance: the pickers grasp the top layer);
 3. ``lookahead`` (default): run every proposal through the arena's own step (the privileged state is
    copied, not changed) and take the one that leaves the highest normalised coverage (less ``unfold_weight``
    times the mean distance from the best-fitting flat cloth, off by default); without lookahead, the
@@ -19,11 +21,12 @@ spirit of Agent-Arena's ``oracle-towel``), for the ``cloth`` arenas' pick-and-pl
    and place at the workspace's empty corner).
 
 The lookahead plans with the arena it acts in, as the planners do: config ``arena`` (the arena string; the
-``jarena`` command sets it) or ``make_cloth_flattening_oracle(config, arena=...)``. It simulates 49 actions
-per action taken (33 + 4 x 4 inner particles). On 128 crumpled 40 x 40 eval episodes the lookahead reaches
-normalised coverage 0.9 within 10 actions on 93% of them, the analytic pull alone on 37%
-(``benchmarks/RESULTS.md``). ``interior`` and ``outward`` were chosen on 256 train episodes (96% against 94%
-for the earlier ``interior: 0, outward: 0.15``, which reaches 88% of the eval episodes), not on the eval ones.
+``jarena`` command sets it) or ``make_cloth_flattening_oracle(config, arena=...)``. It simulates 53 actions
+per action taken (33 + 4 x 4 inner particles + 4 tips). On 128 crumpled 40 x 40 eval episodes the lookahead
+reaches normalised coverage 0.9 within 10 actions on 93% of them (0.99, the task's success, on 78%), the analytic
+pull alone on 37% (``benchmarks/RESULTS.md``). ``interior``, ``outward`` and ``tips`` were chosen on 256 train
+episodes (0.9 on 96% against 94% for the earlier ``interior: 0, outward: 0.15``, which reaches 88% of the eval
+episodes; ``tips``: 0.99 on 212 against 204), not on the eval ones.
 
 Actions are in the frame of the arena's tool (pixels of the top-down camera or normalised world points),
 read from the tool's state; the default heights and camera of :mod:`jarena.arenas.cloth.tools` are assumed.
@@ -54,6 +57,7 @@ class ClothFlatteningOracleConfig:
     outward: float = ranged(0.25, Range(0.0, 0.6))  # metres: a handle's second place, beyond it from the centre
     interior: int = ranged(4, Range(0, 8))  # lookahead: also a side x side grid of inner particles to their goals
     unfold_weight: float = ranged(0.0, Range(0.0, 10.0))  # lookahead: score = coverage - this x fit residual (/m)
+    tips: bool = True  # lookahead: also each corner pinched at its tip (cloth_actions.tip_offsets) to its goal
     arena: str = ""  # the arena the lookahead simulates (its build string); the jarena command sets it
 
 
@@ -108,20 +112,28 @@ def fit_residual(positions: jax.Array, mesh: ClothMesh) -> jax.Array:
 
 
 def proposals(positions: jax.Array, goal: jax.Array, mesh: ClothMesh, pickers: int, coordinates: str,
-              outward: float, interior: int = 0) -> jax.Array:
-    """float32 (33 + interior^2, 4 K): the pulls the lookahead tries (the analytic pull first, then one picker each).
+              outward: float, interior: int = 0, tips: bool = False) -> jax.Array:
+    """float32 (33 + interior^2 (+ 4 with tips), 4 K): the pulls the lookahead tries (the analytic pull first, then
+    one picker each).
 
     Each of the 16 edge handles placed at its ``goal`` (N, 2) position, then each placed ``outward`` metres
     farther from the cloth's centre (its mean particle x-y) than it lies now; then each of an ``interior x
-    interior`` grid of inner particles placed at its goal (a fold's top layer put back).
+    interior`` grid of inner particles placed at its goal (a fold's top layer put back); then, with ``tips``, each
+    corner pinched at its tip (:func:`.cloth_actions.tip_offsets`) and put at its goal.
     """
     handles = jnp.asarray(cloth_actions.edge_handles(mesh))
     pick = positions[handles, :2]
     away = pick - centre_xy(positions)
     away = away / (jnp.sqrt(dot(away, away))[:, None] + 1e-6)
     inner = jnp.asarray(cloth_actions.interior_handles(mesh, interior))  # (0,) for interior 0
-    picks = jnp.concatenate([pick, pick, positions[inner, :2]])
-    places = jnp.concatenate([goal[handles], pick + outward * away, goal[inner]])
+    picks = [pick, pick, positions[inner, :2]]
+    places = [goal[handles], pick + outward * away, goal[inner]]
+    if tips:
+        corners = jnp.asarray(cloth_actions.handles(mesh)[:4])
+        offsets = cloth_actions.tip_offsets(positions, mesh)
+        picks.append(positions[corners, :2] + offsets)
+        places.append(goal[corners] + offsets)
+    picks, places = jnp.concatenate(picks), jnp.concatenate(places)
     analytic = analytic_pull(positions, goal, mesh, pickers, coordinates)
     return jnp.concatenate([analytic[None], cloth_actions.one_picker(picks, places, pickers, coordinates)])
 
@@ -150,7 +162,7 @@ def make_cloth_flattening_oracle(config=None, arena=None) -> Agent:
         if model is None:
             action = analytic_pull(positions, goal, mesh, pickers, coordinates)
         else:
-            tried = proposals(positions, goal, mesh, pickers, coordinates, cfg.outward, cfg.interior)
+            tried = proposals(positions, goal, mesh, pickers, coordinates, cfg.outward, cfg.interior, cfg.tips)
 
             def score(action):
                 after = model.step(privileged, action)[0].physics.positions

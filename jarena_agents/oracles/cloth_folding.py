@@ -14,7 +14,7 @@ takes them. This one reads the goal the task puts in ``info.goal`` (the folded p
 4. ``lookahead`` (default): try folds in the arena's own step and take the one that leaves the highest reward
    (the lowest normalised fold distance): for each of ``fractions``, the analytic fold, each of the 16 edge
    handles (:func:`.cloth_actions.edge_handles`, one picker; spare pickers idle) and each corner pinched at its
-   tip (:func:`tip_offsets`) placed that fraction of the way to its goal, and doing nothing
+   tip (:func:`.cloth_actions.tip_offsets`) placed that fraction of the way to its goal, and doing nothing
    (:func:`fold_proposals`). A cloth carried at the tool's speed slides on
    after release (its momentum drags the flap past its goal and the floor layer with it), so a place short of
    the goal often folds closer; the lookahead measures that rather than guessing it. Without lookahead: the
@@ -32,12 +32,10 @@ import dataclasses
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 from flax import struct
 
-from jarena.arenas.cloth.collision import dot, fixed_matmul, fixed_sum
+from jarena.arenas.cloth.collision import fixed_matmul, fixed_sum
 from jarena.arenas.cloth.mesh import ClothMesh
-from jarena.arenas.cloth.physics import ClothParams
 from jarena.core.agent import Agent
 from jarena.core.arena import ArenaSpec
 from jarena_agents.config import ConfigError, Range, make_config, ranged
@@ -81,41 +79,21 @@ def flat_pose(goal: jax.Array, mesh: ClothMesh) -> jax.Array:
     return fixed_matmul(material, jnp.linalg.solve(gram, moment))
 
 
-def tip_offsets(positions: jax.Array, mesh: ClothMesh) -> jax.Array:
-    """float32 (4, 2): for each corner (in :func:`.cloth_actions.handles`' order), the picker's offset from it,
-    x-y metres, that grasps the corner's tip.
-
-    A picker grasps every top-layer particle within the grasp radius (:class:`~jarena.arenas.cloth.physics.
-    ClothParams`' default 0.028 m) and carries them as a rigid patch: it does not turn them when the flap turns
-    over. The patch, still face up on a flap that is face down, springs over at the release, flinging the
-    corner centimetres past its place (on a 40 x 40 cloth the 8 particles of a corner's patch threw it 53-68 mm
-    past its goal; the tip alone, 7 mm). So the tip pinch closes ``grasp radius - spacing / 2`` outside the
-    corner along the diagonal: the corner is within reach, its grid neighbours are not.
-    """
-    r, c = mesh.rows - 1, mesh.cols - 1
-    corners = cloth_actions.handles(mesh)[:4]
-    inside = np.array([mesh.index(i, j) for i, j in [(1, 1), (1, c - 1), (r - 1, c - 1), (r - 1, 1)]], np.int32)
-    outward = positions[corners, :2] - positions[inside, :2]
-    outward = outward / jnp.maximum(jnp.sqrt(dot(outward, outward)), 1e-9)[:, None]
-    reach = max(float(ClothParams.grasp_radius) - 0.5 * mesh.spacing, 0.0)
-    return jnp.float32(reach) * outward
-
-
 def fold_proposals(positions: jax.Array, goal: jax.Array, mesh: ClothMesh, pickers: int, coordinates: str,
                    fractions: tuple[float, ...]) -> jax.Array:
     """The folds the lookahead tries: float32 ``(P, 4 K)``, P = 2 + 21 x len(fractions).
 
     First the analytic fold and doing nothing; then, for each fraction ``f``, the analytic fold, each of the
     16 edge handles alone placed at ``pick + f (goal - pick)`` (one picker; the spare ones idle), and each of
-    the 4 corners pinched at its tip (:func:`tip_offsets`) with the corner placed there. Handles that stay
-    on the floor in ``goal`` (N, 3) are proposed too: lifting one drags the cloth toward it by a few
-    millimetres (a cloth that cannot stretch comes off the floor only by sliding), which can undo the slide
+    the 4 corners pinched at its tip (:func:`.cloth_actions.tip_offsets`) with the corner placed there.
+    Handles that stay on the floor in ``goal`` (N, 3) are proposed too: lifting one drags the cloth toward it by
+    a few millimetres (a cloth that cannot stretch comes off the floor only by sliding), which can undo the slide
     an earlier fold left.
     """
     corners = jnp.asarray(cloth_actions.handles(mesh))
     edges = jnp.asarray(cloth_actions.edge_handles(mesh))
     moving = ~floor_layer(goal, mesh)
-    tips = tip_offsets(positions, mesh)
+    tips = cloth_actions.tip_offsets(positions, mesh)
 
     def toward(handles, f):  # float32 (H, 2): each handle placed the fraction f of the way to its goal
         pick = positions[handles, :2]

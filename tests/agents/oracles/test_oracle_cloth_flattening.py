@@ -87,7 +87,7 @@ def test_the_lookahead_takes_the_proposal_that_covers_most(crumpled):
             def after(a):
                 return coverage.normalised_coverage(model.step(start, a)[0].physics.positions, mesh)
             positions = start.physics.positions
-            tried = proposals(positions, flat_goal(positions, mesh, 0.15), mesh, 1, "pixel", 0.25, 4)
+            tried = proposals(positions, flat_goal(positions, mesh, 0.15), mesh, 1, "pixel", 0.25, 4, True)
             covered = jax.vmap(after)(jnp.concatenate([tried, action[None]]))  # one copy of the step compiled
             return coverage.normalised_coverage(positions, mesh), covered[:-1], covered[-1]
 
@@ -95,7 +95,7 @@ def test_the_lookahead_takes_the_proposal_that_covers_most(crumpled):
 
     now, tried, taken = (np.asarray(x) for x in check(_take(crumpled.info, slice(3)),
                                                       _take(crumpled.privileged, slice(3))))
-    assert tried.shape == (3, 33 + 16)  # the defaults: 16 edge handles twice, 4 x 4 inner particles
+    assert tried.shape == (3, 33 + 16 + 4)  # the defaults: 16 edge handles twice, 4 x 4 inner particles, 4 tips
     assert (now < 0.9).all(), now  # the oracle acts (it idles from 0.999)
     for i in range(3):
         assert len(np.unique(tried[i])) > 3, tried[i]  # the proposals differ

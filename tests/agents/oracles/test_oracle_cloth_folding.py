@@ -120,7 +120,7 @@ def test_the_lookahead_needs_the_arena_it_simulates_and_fractions_toward_the_goa
 def test_a_tip_pinch_grasps_each_corner_alone(cols):
     from jarena.arenas.cloth.mesh import ClothMesh
     from jarena.arenas.cloth.physics import ClothPhysics
-    from jarena_agents.oracles.cloth_folding import tip_offsets
+    from jarena_agents.oracles.cloth_actions import tip_offsets
 
     mesh = ClothMesh.of_size(0.4, 0.4, cols=cols)
     physics = ClothPhysics(mesh, solver="xla")
