@@ -36,10 +36,13 @@ from jarena.runners.evaluate import evaluate  # noqa: E402
 from jarena.training import train_and_evaluate  # noqa: E402
 
 enable_compilation_cache(min_compile_secs=0.2)
+# 16 evaluation and 8 validation episodes (the arenas' default 100 and 20 cost most of a multi-process run, whose
+# every evaluation step waits on the other processes): each still splits evenly over up to 8 devices
+SPLITS = ",eval_episodes:16,val_episodes:8"
 CONFIGS = {
-    "ppo": ("classic|domain:cartpole,auto_reset:lazy",  # lazy: a cond per step, kept on each device
+    "ppo": ("classic|domain:cartpole,auto_reset:lazy" + SPLITS,  # lazy: a cond per step, kept on each device
             {"num_arenas": 8, "rollout_length": 16, "total_steps": 8 * 16 * 4, "minibatches": 2, "epochs": 2}),
-    "sac": ("classic|domain:pendulum",
+    "sac": ("classic|domain:pendulum" + SPLITS,
             {"num_arenas": 4, "rollout_length": 4, "total_steps": 4 * 4 * 4, "batch_size": 32, "buffer_size": 256,
              "learning_starts": 16, "hidden": (32, 32)}),
 }
