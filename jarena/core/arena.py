@@ -115,17 +115,22 @@ class Arena:
         return self.tool.spec(self.dynamics.control_spec)
 
     @functools.cached_property
+    def _reset_info_shape(self):
+        """Shapes and dtypes of the reset's info, traced once for the observation spec and the goal size (an
+        MJX arena's reset takes seconds to trace)."""
+        _, info = jax.eval_shape(lambda: self.reset(jax.random.key(0)))
+        return info
+
+    @functools.cached_property
     def observation_spec(self) -> Spec:
         """Spec of ``info.observation``."""
         if self.sensor.spec is not None:
             return self.sensor.spec
-        _, info = jax.eval_shape(lambda: self.reset(jax.random.key(0)))
-        return spec_from_value(info.observation)
+        return spec_from_value(self._reset_info_shape.observation)
 
     @functools.cached_property
     def goal_dim(self) -> int:
-        _, info = jax.eval_shape(lambda: self.reset(jax.random.key(0)))
-        return int(info.goal.shape[0])
+        return int(self._reset_info_shape.goal.shape[0])
 
     @property
     def spec(self) -> ArenaSpec:

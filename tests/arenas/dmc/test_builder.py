@@ -80,7 +80,7 @@ def test_resets_fit_the_arenas_model_under_contact_culling(domain):
 
     arena = jarena.build_arena(f"dmc|domain:{domain},max_contact_points:2,max_geom_pairs:1")
     state, _ = jax.eval_shape(arena.reset, jax.random.key(0))
-    stepped, _ = jax.eval_shape(arena.step, state, arena.spec.action.zeros())
+    stepped, _ = jax.eval_shape(arena.step, state, arena.action_spec.zeros())  # (spec would trace a reset)
     assert jax.tree.structure(state) == jax.tree.structure(stepped)
     for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(stepped), strict=True):
         assert (a.shape, a.dtype) == (b.shape, b.dtype)
