@@ -90,9 +90,10 @@ def fold_proposals(positions: jax.Array, goal: jax.Array, mesh: ClothMesh, picke
     a few millimetres (a cloth that cannot stretch comes off the floor only by sliding), which can undo the slide
     an earlier fold left.
     """
-    corners = jnp.asarray(cloth_actions.handles(mesh))
+    corners = jnp.asarray(cloth_actions.handles(mesh))  # the analytic fold's handles: corners and edge midpoints
     edges = jnp.asarray(cloth_actions.edge_handles(mesh))
     moving = ~floor_layer(goal, mesh)
+    four = corners[:4]  # the corners alone, pinched at their tips
     tips = cloth_actions.tip_offsets(positions, mesh)
 
     def toward(handles, f):  # float32 (H, 2): each handle placed the fraction f of the way to its goal
@@ -106,8 +107,7 @@ def fold_proposals(positions: jax.Array, goal: jax.Array, mesh: ClothMesh, picke
     for f in fractions:
         actions += [fold(toward(corners, f))[None],
                     cloth_actions.one_picker(positions[edges, :2], toward(edges, f), pickers, coordinates),
-                    cloth_actions.one_picker(positions[corners[:4], :2] + tips, toward(corners[:4], f) + tips, pickers,
-                                             coordinates)]
+                    cloth_actions.one_picker(positions[four, :2] + tips, toward(four, f) + tips, pickers, coordinates)]
     return jnp.concatenate(actions)
 
 
