@@ -35,7 +35,7 @@ from jarena.platform import enable_compilation_cache  # noqa: E402
 from jarena.runners.evaluate import evaluate  # noqa: E402
 from jarena.training import train_and_evaluate  # noqa: E402
 
-enable_compilation_cache(min_compile_secs=0.2)
+enable_compilation_cache(min_compile_secs=0)  # every program, as the suite (tests/conftest.py)
 # 16 evaluation and 8 validation episodes (the arenas' default 100 and 20 cost most of a multi-process run, whose
 # every evaluation step waits on the other processes): each still splits evenly over up to 8 devices
 SPLITS = ",eval_episodes:16,val_episodes:8"

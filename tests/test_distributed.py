@@ -174,6 +174,8 @@ def test_the_command_line_launches_two_processes(tmp_path):
 
 
 SHARDED_ROLLOUT = """
+from jarena.platform import enable_compilation_cache
+enable_compilation_cache(min_compile_secs=0)  # the suite's cache
 import re, jax, numpy as np
 import jarena, jarena_agents
 from jarena import distributed
@@ -218,6 +220,8 @@ def test_sharded_calls_compile_through_gspmd_and_leave_the_default_alone():
 
 
 BC_ON_A_MESH = """
+from jarena.platform import enable_compilation_cache
+enable_compilation_cache(min_compile_secs=0)  # the suite's cache
 import re, sys, jax, numpy as np
 import jarena, jarena_agents
 from jarena import distributed

@@ -10,6 +10,8 @@ import pytest
 
 PER_DEVICE_WORK = """
 import sys, jax, jax.numpy as jnp, numpy as np, jarena, jarena_agents
+from jarena.platform import enable_compilation_cache
+enable_compilation_cache(min_compile_secs=0)  # the suite's cache (JARENA_COMPILATION_CACHE, set by conftest.py)
 from jarena import distributed
 from jarena.training import _compiled_training
 name = sys.argv[1]
