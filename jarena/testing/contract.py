@@ -27,6 +27,7 @@ from jarena.core.batching import auto_reset
 from jarena.core.faults import describe
 
 DEFAULT_STEPS = 200
+DEFAULT_DETERMINISM_STEPS = 50
 
 
 def _leaves(tree):
@@ -132,7 +133,13 @@ def _trajectory(arena: Arena, steps: int):
     return rollout
 
 
-def check_determinism(arena: Arena, key: jax.Array, steps: int = 50) -> None:
+def check_determinism(arena: Arena, key: jax.Array, steps: int | None = None) -> None:
+    """The same key gives the same rollout of ``steps`` random actions (default 50, or two whole episodes and a
+    step where episodes are shorter, so that two auto-resets are crossed: a cloth's step is a pick-and-place of
+    some 70 physics steps); another key gives another start; an episode id fixes the start whatever the key."""
+    if steps is None:
+        steps = min(DEFAULT_DETERMINISM_STEPS, 2 * arena.max_episode_steps + 1) if arena.max_episode_steps else \
+            DEFAULT_DETERMINISM_STEPS
     rollout = _trajectory(arena, steps)
     first = rollout(key)
     second = rollout(key)
