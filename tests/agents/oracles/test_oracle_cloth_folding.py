@@ -107,6 +107,31 @@ def test_the_lookahead_takes_the_fold_that_ends_nearest_the_goal():
         assert taken[i] > tried[i, 1]  # folding beats doing nothing on a flat cloth
 
 
+def test_fold_proposals_move_each_edge_handle_toward_its_goal_and_lift_floor_handles_in_place():
+    # per fraction f: the analytic fold, then each of the 16 edge handles alone placed the fraction f of the way to
+    # its goal (those that stay on the floor too: they are lifted and set down in place, which drags the cloth a
+    # few millimetres toward them), then the 4 corners pinched at their tips
+    from jarena.arenas.cloth.mesh import ClothMesh
+    from jarena.arenas.cloth.tasks import folded_goals
+    from jarena.arenas.cloth.tools import WORKSPACE_HALF_WIDTH
+    from jarena_agents.oracles.cloth_folding import fold_proposals
+
+    mesh = ClothMesh(rows=12, cols=12, spacing=0.03)
+    flat = jnp.asarray(mesh.rest_positions, jnp.float32) + jnp.array([0.02, -0.01, 0.4 * mesh.spacing])
+    goal = folded_goals(mesh, "side_fold", flat)[0]
+    tried = np.asarray(fold_proposals(flat, goal, mesh, 1, "world", (0.5, 1.0))) * WORKSPACE_HALF_WIDTH
+    assert tried.shape == (2 + 21 * 2, 4)
+    edges = cloth_actions.edge_handles(mesh)
+    on_floor = np.asarray(floor_layer(goal, mesh))[edges]
+    assert 0 < on_floor.sum() < 16, on_floor  # a side fold leaves about half its edge handles on the floor
+    start, end = np.asarray(flat)[edges, :2], np.asarray(goal)[edges, :2]
+    for k, f in enumerate((0.5, 1.0)):
+        one = tried[2 + 21 * k + 1:2 + 21 * k + 17]
+        np.testing.assert_allclose(one[:, :2], start, atol=1e-5)
+        np.testing.assert_allclose(one[:, 2:], start + f * (end - start), atol=1e-5)
+        np.testing.assert_allclose(one[on_floor, 2:], start[on_floor], atol=2e-3)  # lifted in place (within 2 mm)
+
+
 def test_the_lookahead_needs_the_arena_it_simulates_and_fractions_toward_the_goal():
     with pytest.raises(ConfigError, match="arena='<arena string>'.*lookahead=False"):
         build_agent("oracle_cloth_folding")
