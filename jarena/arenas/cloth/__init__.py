@@ -18,6 +18,8 @@ Builder ``cloth``::
   uint8 (R, R) from the top-down camera, ``resolution`` R (default 128); ``depth:false`` and ``mask:false``
   drop those two (a pixel policy that reads only ``rgb``, and smaller datasets). Oracles read the particles
   from ``arena.privileged(state).physics.positions``.
+- ``substeps``: XPBD substeps per 10 ms physics step (default 8; the constraint passes and collisions run once
+  per substep, so fewer run faster and leave the cloth softer and its layers less well kept apart).
 - ``solver``: how the physics substeps run (:data:`.physics.SOLVERS`): ``auto`` (default: the fused Pallas
   kernel of :mod:`.fused` on a GPU, jax.numpy elsewhere), ``xla`` or ``fused``.
 """
