@@ -109,10 +109,7 @@ def crumpled(key: jax.Array, physics: ClothPhysics, params: ClothParams) -> Clot
     Compiled as one program whether it is called eagerly or inside a caller's ``jit`` (where it is inlined, to
     the same bits as without this ``jit``): its ~250 physics steps amplify the last-bit differences between
     op-by-op and fused arithmetic (in the random pose and heights before the scan) to centimetres, so an eager
-    reset would otherwise start a different cloth from the jitted one. The params pass an optimization barrier:
-    a caller's jit that holds them as constants would otherwise fold them at compile time, another last-bit
-    difference (measured: 3-5 cm apart from the same episode id)."""
-    params = jax.lax.optimization_barrier(params)
+    reset would otherwise start a different cloth from the jitted one."""
     k_flat, k_lift, k_height, k_drag, k_do, k_shift, k_centre = jax.random.split(key, 7)
     n = physics.mesh.num_particles
     state = physics.state_from_positions(_flat_positions(k_flat, physics, params, 0.0))
