@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import jax
@@ -101,8 +102,17 @@ def _grab_and_move_all(physics: ClothPhysics, params: ClothParams, state: ClothS
     return jax.lax.scan(body, (state, jnp.zeros(3, jnp.float32)), schedule)[0][0]
 
 
+@functools.partial(jax.jit, static_argnums=1)
 def crumpled(key: jax.Array, physics: ClothPhysics, params: ClothParams) -> ClothState:
-    """A crumpled cloth (see the module docstring)."""
+    """A crumpled cloth (see the module docstring).
+
+    Compiled as one program whether it is called eagerly or inside a caller's ``jit`` (where it is inlined, to
+    the same bits as without this ``jit``): its ~250 physics steps amplify the last-bit differences between
+    op-by-op and fused arithmetic (in the random pose and heights before the scan) to centimetres, so an eager
+    reset would otherwise start a different cloth from the jitted one. The params pass an optimization barrier:
+    a caller's jit that holds them as constants would otherwise fold them at compile time, another last-bit
+    difference (measured: 3-5 cm apart from the same episode id)."""
+    params = jax.lax.optimization_barrier(params)
     k_flat, k_lift, k_height, k_drag, k_do, k_shift, k_centre = jax.random.split(key, 7)
     n = physics.mesh.num_particles
     state = physics.state_from_positions(_flat_positions(k_flat, physics, params, 0.0))

@@ -163,7 +163,7 @@ def test_interior_proposals_put_inner_particles_at_their_goals_and_the_score_cou
                 return coverage.normalised_coverage(after, mesh) - 2.0 * fit_residual(after, mesh)
             positions = start.physics.positions
             goal = flat_goal(positions, mesh, 0.15)
-            tried = proposals(positions, goal, mesh, 1, "pixel", 0.15, 3)
+            tried = proposals(positions, goal, mesh, 1, "pixel", 0.15, 3, True)  # tips on, as the oracle's default
             inner = jnp.asarray(cloth_actions.interior_handles(mesh, 3))
             expected = jax.vmap(lambda p, q: cloth_actions.encode(p[None], q[None], "pixel"))(
                 positions[inner, :2], goal[inner])
@@ -174,7 +174,7 @@ def test_interior_proposals_put_inner_particles_at_their_goals_and_the_score_cou
 
     tried, expected, scores, taken = (np.asarray(x) for x in check(_take(crumpled.info, slice(2)),
                                                                    _take(crumpled.privileged, slice(2))))
-    assert tried.shape == (2, 33 + 9, 4)
-    np.testing.assert_allclose(tried[:, 33:], expected, atol=1e-6)  # the last 9: inner particles to their goals
+    assert tried.shape == (2, 33 + 9 + 4, 4)
+    np.testing.assert_allclose(tried[:, 33:42], expected, atol=1e-6)  # these 9: inner particles to their goals
     for i in range(2):
         assert taken[i] == scores[i].max(), (taken[i], scores[i])
