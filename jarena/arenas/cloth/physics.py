@@ -193,7 +193,11 @@ class ClothPhysics:
 
     # ------------------------------------------------------------------ one control step
     def step(self, state: ClothState, control: jax.Array, params: ClothParams) -> ClothState:
-        """Advances the cloth by ``dt``: pickers grasp or release, move by ``control[:, :3]``, cloth follows."""
+        """Advances the cloth by ``dt``: pickers grasp or release, move by ``control[:, :3]``, cloth follows.
+
+        The params pass an optimization barrier: a caller's ``jit`` holding them as constants would fold them at
+        compile time, a last-bit difference that a crumpled cloth grows to millimetres within a few actions."""
+        params = jax.lax.optimization_barrier(params)
         control = jnp.asarray(control, jnp.float32)
         delta = jnp.clip(control[:, :3], -MAX_PICKER_STEP, MAX_PICKER_STEP)
         closed = control[:, 3] > 0

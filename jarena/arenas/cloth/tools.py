@@ -164,6 +164,7 @@ def _pick_place_tool(num_pickers: int, timing: Timing, name: str, to_world, defa
         return jnp.tile(jnp.array([-1.0, -1.0, -1.0, -1.0], jnp.float32), k)
 
     def step(state, action, carry, inner, params, inner_spec):
+        params = jax.lax.optimization_barrier(params)  # as the physics': the same bits with params as constants
         points = jnp.clip(jnp.asarray(action, jnp.float32).reshape(k, 4), -1.0, 1.0)
         pick = to_world(points[:, :2], params.pick_height, params)
         place = to_world(points[:, 2:], params.place_height, params)
