@@ -19,7 +19,9 @@ Builder ``cloth``::
   drop those two (a pixel policy that reads only ``rgb``, and smaller datasets). Oracles read the particles
   from ``arena.privileged(state).physics.positions``.
 - ``substeps``: XPBD substeps per 10 ms physics step (default 8; the constraint passes and collisions run once
-  per substep, so fewer run faster and leave the cloth softer and its layers less well kept apart).
+  per substep: fewer leave the cloth stretchier and its layers less well kept apart, more make it stiffer). 8 is
+  also the fastest for crumpled cloths on a GPU: with fewer, the softer piles crowd the neighbour search
+  (``benchmarks/RESULTS.md``, "Cloth").
 - ``solver``: how the physics substeps run (:data:`.physics.SOLVERS`): ``auto`` (default: the fused Pallas
   kernel of :mod:`.fused` on a GPU, jax.numpy elsewhere), ``xla`` or ``fused``.
 """
