@@ -10,7 +10,7 @@ the measurements (best shown, median in the JSON):
   (``B x actions / seconds``) and the physics steps they contain (one action = ``tool.substeps`` = 68 steps).
 - ``act+reset``: the same with auto-reset (``lazy``) and episodes of ``--horizon`` actions, so that one
   crumpled reset (about 250 physics steps, simulated on device) falls into every ``horizon`` actions.
-- ``physics``: ``ClothPhysics.step`` alone (8 substeps, self-collision, no task, no camera), ``--steps``
+- ``physics``: ``ClothPhysics.step`` alone (``--substeps``, default 8, self-collision, no task, no camera), ``--steps``
   steps per call with random picker controls, reported as physics steps/s.
 - ``render``: the top-down camera alone (``camera.render`` at 128 x 128) of the cloths' current particles,
   ``--frames`` renders per call (frames/s).
@@ -59,7 +59,8 @@ SOFTGYM_STEPS_PER_S = 440.0
 
 def make(measurement: str, batch: int, solver: str, args):
     """Returns ``(run, carry, units)``: ``run(carry) -> carry`` one timed call, ``units`` counted per call."""
-    arena = jarena.build_arena(f"{ARENA},resolution:{args.resolution},horizon:{args.horizon},solver:{solver}")
+    arena = jarena.build_arena(f"{ARENA},resolution:{args.resolution},horizon:{args.horizon},solver:{solver},"
+                               f"substeps:{args.substeps}")
     params = arena.default_params()
     states, _ = jax.jit(lambda k: jarena.batch_reset(arena, k, batch, params))(jax.random.key(args.seed))
     jax.block_until_ready(states)
@@ -125,7 +126,7 @@ def markdown(env: dict, rows: list[dict], args) -> str:
     steps_per_action = jarena.build_arena(ARENA).tool.substeps
     lines = [f"Device: {env['device']} ({env['backend']}), CPU {env['cpu']} x {env['cpu_count']}, Python "
              f"{env['python']}, jax {env['jax']}; {env['date']}", f"Command: `{env['command']}`", "",
-             f"One action = {steps_per_action} physics steps (8 substeps each), 40 x 40 particles, "
+             f"One action = {steps_per_action} physics steps ({args.substeps} substeps each), 40 x 40 particles, "
              f"{args.resolution} x {args.resolution} observations. Ratio: against SoftGym's ~"
              f"{SOFTGYM_ACTIONS_PER_S:g} actions/s ({SOFTGYM_STEPS_PER_S:g} FleX steps/s) per process.", "",
              "| B | solver | actions/s (act) | physics steps/s in act | actions/s (act+reset) "
@@ -158,6 +159,7 @@ def parse_args(argv=None):
     p.add_argument("--solvers", default="auto",
                    help=f"comma-separated cloth solvers to time side by side, from {['auto', *SOLVERS]} "
                         "(default auto: the fused kernel on a GPU)")
+    p.add_argument("--substeps", type=int, default=8, help="XPBD substeps per physics step (default 8, the arena's)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default=None, help="write a markdown table (and JSON beside it) here")
     args = p.parse_args(argv)
@@ -170,7 +172,7 @@ def parse_args(argv=None):
     bad = sorted(set(args.solvers) - {"auto", *SOLVERS})
     if bad or not args.solvers:
         p.error(f"unknown solver(s) {bad}; choose from {['auto', *SOLVERS]}")
-    for key in ("actions", "steps", "frames", "horizon", "repeats"):
+    for key in ("actions", "steps", "frames", "horizon", "repeats", "substeps"):
         if getattr(args, key) < 1:
             p.error(f"--{key} must be >= 1")
     if args.batch_sizes is None:
