@@ -49,6 +49,17 @@ def padded_size(n: int) -> int:
     return 1 << max(4, (int(n) - 1).bit_length())
 
 
+def default_warps(n_pad: int) -> int:
+    """Warps per kernel program for ``n_pad`` padded particles: two particles per thread, 4 to 32 warps.
+
+    The programs are register-bound: with more particles per thread they hold fewer threads per GPU core to hide
+    their memory latency. For 40 x 40 cloths (2048 padded) 32 warps step 20% more actions per second than the
+    16 (list) and 8 (substeps) used before, on an H100 and an H200 alike (``benchmarks/RESULTS.md``); the
+    warps split the same arithmetic among threads, so the results are the same bits.
+    """
+    return min(32, max(4, int(n_pad) // 64))
+
+
 COLOURS = np.array([  # (di, dj, axis, div, colour, kind): the 12 constraint colours, in their order of solving
     (di, dj, axis, div, colour, kind)
     for di, dj, axis, div, kind in [(0, 1, 1, 1, 0), (1, 0, 0, 1, 0), (1, 1, 0, 1, 1), (1, -1, 0, 1, 1),
@@ -343,14 +354,14 @@ def _list_call(mesh: ClothMesh, max_neighbours: int, slots: int, interpret: bool
 
 
 def neighbour_list(mesh: ClothMesh, x: jax.Array, radius: jax.Array, *, max_neighbours: int = 16, slots: int = 64,
-                   interpret: bool | None = None, num_warps: int = 16) -> tuple[jax.Array, jax.Array]:
+                   interpret: bool | None = None, num_warps: int | None = None) -> tuple[jax.Array, jax.Array]:
     """:func:`.collision.neighbour_list` of one cloth's positions ``x`` (N, 3), grid neighbours excluded, as a
     kernel: the same pairs in the same order wherever the jax.numpy list's ``candidates`` slots suffice (this
     one reads every candidate). ``slots``: the candidates within ``radius`` a particle keeps from its walk for the
     listing (if one has more, its program walks twice more: slower, same result; 64 is fastest on an H100 for
     crumpled 40 x 40 cloths). The kernel's scratch arrays take (M + 2 x slots + 83) x 4 bytes per padded particle:
-    1.9 MB of GPU memory per 40 x 40 cloth. Returns int32 (N, max_neighbours) and the int32 overflow (listed pairs
-    past a particle's slots)."""
+    1.9 MB of GPU memory per 40 x 40 cloth. ``num_warps``: per program (default :func:`default_warps`). Returns int32
+    (N, max_neighbours) and the int32 overflow (listed pairs past a particle's slots)."""
     n, n_pad = mesh.num_particles, padded_size(mesh.num_particles)
     if interpret is None:
         interpret = jax.default_backend() != "gpu"
@@ -360,6 +371,7 @@ def neighbour_list(mesh: ClothMesh, x: jax.Array, radius: jax.Array, *, max_neig
     def rows(a):
         return jnp.concatenate([jnp.pad(a[:, c], (0, n_pad - n)) for c in range(a.shape[1])])
 
+    num_warps = default_warps(n_pad) if num_warps is None else num_warps
     out, *_, overflow = _list_call(mesh, int(max_neighbours), int(slots), bool(interpret), int(num_warps))(
         jnp.pad(radius[None], (0, 15)), jnp.asarray(np.pad(collision.OFFSETS.ravel(), (0, 128 - 81))),
         rows(x), rows(cell), jnp.pad(order, (0, n_pad - n)),
@@ -390,7 +402,8 @@ def _call(mesh: ClothMesh, substeps: int, num_pickers: int, max_neighbours: int,
 
 
 def run_substeps(mesh: ClothMesh, substeps: int, x, v, inv_mass, holder, offset, start, end, tether_to,
-                 tether_length, neighbours, share, scalars, *, interpret: bool | None = None, num_warps: int = 8):
+                 tether_length, neighbours, share, scalars, *, interpret: bool | None = None,
+                 num_warps: int | None = None):
     """The substeps of one control step of one cloth (see :meth:`.physics.ClothPhysics.step`), fused.
 
     Args:
@@ -403,6 +416,7 @@ def run_substeps(mesh: ClothMesh, substeps: int, x, v, inv_mass, holder, offset,
       neighbours: int32 (N, M) (-1: none); share: float32 (N, M) (see :mod:`.collision`).
       scalars: float32 (len(SCALARS),) in the order of :data:`SCALARS`.
       interpret: run in Pallas' interpreter (default: on any backend but a GPU).
+      num_warps: per program (default :func:`default_warps`).
 
     Returns:
       positions and velocities, three float32 (N,) arrays each.
@@ -424,6 +438,7 @@ def run_substeps(mesh: ClothMesh, substeps: int, x, v, inv_mass, holder, offset,
     scal = jnp.pad(scal, (0, padded_size(scal.shape[0]) - scal.shape[0]))
     xv = jnp.concatenate([pad(c) for c in (*x, *v)])
     colours = jnp.asarray(np.pad(COLOURS.ravel(), (0, padded_size(COLOURS.size) - COLOURS.size)))
+    num_warps = default_warps(n_pad) if num_warps is None else num_warps
     out = _call(mesh, int(substeps), int(k), int(m), bool(interpret), int(num_warps))(
         scal, colours, xv, pad(inv_mass), pad(holder, -1), jnp.concatenate([pad(c) for c in offset]),
         rows(tether_to, -1), rows(tether_length), rows(neighbours, -1), rows(share))[0]

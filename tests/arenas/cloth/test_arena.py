@@ -124,7 +124,8 @@ def test_a_jit_holding_the_params_as_constants_steps_the_same_cloth_as_one_takin
         return jax.lax.scan(lambda s, a: arena.step(s, a, params), state, actions)[1]
 
     baked, passed = jax.jit(lambda: episode(params))(), jax.jit(episode)(params)
-    for leaf_baked, leaf_passed in zip(jax.tree_util.tree_leaves(baked), jax.tree_util.tree_leaves(passed)):
+    leaves = zip(jax.tree_util.tree_leaves(baked), jax.tree_util.tree_leaves(passed), strict=True)
+    for leaf_baked, leaf_passed in leaves:
         np.testing.assert_array_equal(np.asarray(leaf_baked), np.asarray(leaf_passed))
     assert np.abs(np.diff(np.asarray(baked.metrics["normalised_coverage"]))).max() > 0  # the actions moved it
 

@@ -67,6 +67,10 @@ def test_kernel_programs_have_power_of_two_sizes():
     assert [fused.padded_size(n) for n in (63, 64, 65, 1600, 4096)] == [64, 64, 128, 2048, 4096]
 
 
+def test_kernel_programs_run_two_particles_per_thread_in_4_to_32_warps():
+    assert [fused.default_warps(n) for n in (16, 256, 1024, 2048, 4096, 16384)] == [4, 4, 16, 32, 32, 32]
+
+
 # a loose heap, one piled past the list's slots (overflow), and one with more candidates than the kernel keeps
 @pytest.mark.parametrize("size, kept", [(0.05, 64), (0.02, 64), (0.02, 4)])
 def test_the_kernel_lists_the_pairs_the_jax_numpy_list_does(size, kept):
