@@ -342,9 +342,9 @@ def _list_kernel(radius_ref, offsets_ref, x_ref, cell_ref, order_ref, sorted_cel
 
 
 @functools.cache
-def _list_call(mesh: ClothMesh, max_neighbours: int, slots: int, interpret: bool, num_warps: int):
+def _list_call(mesh: ClothMesh, max_neighbours: int, slots: int, interpret: bool, num_warps: int | None):
     n_pad = padded_size(mesh.num_particles)
-    barrier, extra = _backend(interpret, num_warps)
+    barrier, extra = _backend(interpret, num_warps, n_pad)
     kernel = functools.partial(_list_kernel, mesh=mesh, n_pad=n_pad, buckets=collision.num_buckets(
         mesh.num_particles), max_neighbours=max_neighbours, slots=slots, barrier=barrier)
     i32, f32 = jnp.int32, jnp.float32
@@ -371,8 +371,7 @@ def neighbour_list(mesh: ClothMesh, x: jax.Array, radius: jax.Array, *, max_neig
     def rows(a):
         return jnp.concatenate([jnp.pad(a[:, c], (0, n_pad - n)) for c in range(a.shape[1])])
 
-    num_warps = default_warps(n_pad) if num_warps is None else num_warps
-    out, *_, overflow = _list_call(mesh, int(max_neighbours), int(slots), bool(interpret), int(num_warps))(
+    out, *_, overflow = _list_call(mesh, int(max_neighbours), int(slots), bool(interpret), num_warps)(
         jnp.pad(radius[None], (0, 15)), jnp.asarray(np.pad(collision.OFFSETS.ravel(), (0, 128 - 81))),
         rows(x), rows(cell), jnp.pad(order, (0, n_pad - n)),
         jnp.pad(collision.cell_key(collision.components(cell))[order], (0, n_pad - n)), start, count)
@@ -380,18 +379,19 @@ def neighbour_list(mesh: ClothMesh, x: jax.Array, radius: jax.Array, *, max_neig
     return neighbours, jnp.sum(overflow)
 
 
-def _backend(interpret: bool, num_warps: int):
-    """``(barrier, pallas_call keywords)`` for the interpreter or the GPU."""
+def _backend(interpret: bool, num_warps: int | None, n_pad: int):
+    """``(barrier, pallas_call keywords)`` for the interpreter or the GPU; ``num_warps`` None: :func:`default_warps`."""
     if interpret:
         return _no_barrier, {"interpret": True}
+    num_warps = default_warps(n_pad) if num_warps is None else int(num_warps)
     return plgpu.debug_barrier, {"compiler_params": plgpu.CompilerParams(num_warps=num_warps, num_stages=1)}
 
 
 @functools.cache
 def _call(mesh: ClothMesh, substeps: int, num_pickers: int, max_neighbours: int, interpret: bool,
-          num_warps: int):
+          num_warps: int | None):
     n_pad = padded_size(mesh.num_particles)
-    barrier, extra = _backend(interpret, num_warps)
+    barrier, extra = _backend(interpret, num_warps, n_pad)
     kernel = functools.partial(_kernel, mesh=mesh, n_pad=n_pad, substeps=int(substeps), num_pickers=num_pickers,
                                max_neighbours=max_neighbours, barrier=barrier)
     f32 = jnp.float32
@@ -438,8 +438,7 @@ def run_substeps(mesh: ClothMesh, substeps: int, x, v, inv_mass, holder, offset,
     scal = jnp.pad(scal, (0, padded_size(scal.shape[0]) - scal.shape[0]))
     xv = jnp.concatenate([pad(c) for c in (*x, *v)])
     colours = jnp.asarray(np.pad(COLOURS.ravel(), (0, padded_size(COLOURS.size) - COLOURS.size)))
-    num_warps = default_warps(n_pad) if num_warps is None else num_warps
-    out = _call(mesh, int(substeps), int(k), int(m), bool(interpret), int(num_warps))(
+    out = _call(mesh, int(substeps), int(k), int(m), bool(interpret), num_warps)(
         scal, colours, xv, pad(inv_mass), pad(holder, -1), jnp.concatenate([pad(c) for c in offset]),
         rows(tether_to, -1), rows(tether_length), rows(neighbours, -1), rows(share))[0]
     parts = tuple(out[a * n_pad:a * n_pad + n] for a in range(6))
