@@ -87,6 +87,27 @@ def test_the_kernel_lists_the_pairs_the_jax_numpy_list_does(size, kept):
     assert (int(overflow) > 0) == (size < 0.03)
 
 
+def test_the_kernel_lists_pairs_just_within_the_radius_across_a_cell_corner():
+    # the list skips neighbour cells beyond the radius: a pair that straddles a corner of the cells, just within
+    # the radius, must still be listed (each pair far from the others, particles k and k + 60 five rows apart)
+    mesh = ClothMesh(rows=10, cols=12, spacing=0.01)
+    radius = 0.016
+    rng = np.random.default_rng(1)
+    x = np.stack([np.arange(120) * 10.0, np.full(120, 40.0), np.full(120, 20.0)], -1) * radius
+    for k in range(20):
+        corner = np.array([10.0 * k + 3, 7.0, 3.0]) * radius  # a corner shared by 8 cells
+        u = rng.uniform(0.2, 1.0, 3)
+        u /= np.linalg.norm(u)
+        distance = rng.uniform(0.95, 0.999) * radius
+        before = rng.uniform(0.05, 0.95) * distance
+        x[k], x[k + 60] = corner - before * u, corner + (distance - before) * u
+    x = jnp.asarray(x.astype(np.float32))
+    found, _ = jax.jit(lambda x: fused.neighbour_list(mesh, x, jnp.float32(radius)))(x)
+    found = np.asarray(found)
+    assert all(found[k, 0] == k + 60 and found[k + 60, 0] == k for k in range(20))
+    np.testing.assert_array_equal(found, np.asarray(neighbours_xla(mesh, x, jnp.float32(radius))[0]))
+
+
 def test_the_arena_string_names_the_valid_solvers():
     import jarena
     from jarena.building import ArenaStringError
