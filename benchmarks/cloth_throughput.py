@@ -1,6 +1,6 @@
 """Pick-and-place actions and cloth physics steps per second (issue 17), with 128 x 128 observations.
 
-Three measurements, each one jitted ``lax.scan`` for a batch of B cloths, compiled apart
+The measurements, each one jitted ``lax.scan`` for a batch of B cloths, compiled apart
 (``jit(...).lower(...).compile()``, timed), one warm-up call, then ``--repeats`` timed calls interleaved across
 the measurements (best shown, median in the JSON):
 
@@ -12,6 +12,10 @@ the measurements (best shown, median in the JSON):
   crumpled reset (about 250 physics steps, simulated on device) falls into every ``horizon`` actions.
 - ``physics``: ``ClothPhysics.step`` alone (``--substeps``, default 8, self-collision, no task, no camera), ``--steps``
   steps per call with random picker controls, reported as physics steps/s.
+- ``step``: ``ClothPhysics.step`` alone, ``--steps`` steps per call, every one from the same crumpled state (nudged by
+  1e-9 m per step, so that XLA computes each) with the picker closed and moving 3 mm along each axis: every step
+  reads the same neighbour lists, so two versions of the kernels compare on the same work even where they change
+  the physics (reported as physics steps/s).
 - ``render``: the top-down camera alone (``camera.render`` at 128 x 128) of the cloths' current particles,
   ``--frames`` renders per call (frames/s).
 
@@ -52,7 +56,7 @@ from cartpole_throughput import fmt, parse_batches, write_report  # noqa: E402
 from timing import environment, time_interleaved  # noqa: E402
 
 ARENA = "cloth|domain:square_fabric,initial:crumpled,action:pixel_pick_and_place(1),task:flattening"
-MEASUREMENTS = ("act", "act+reset", "physics", "render")
+MEASUREMENTS = ("act", "act+reset", "physics", "step", "render")
 SOFTGYM_ACTIONS_PER_S = 9.0  # upper end of SoftGym's per-process rate, see the module docstring
 SOFTGYM_STEPS_PER_S = 440.0
 
@@ -99,6 +103,23 @@ def make(measurement: str, batch: int, solver: str, args):
             return physics, jax.random.fold_in(key, 1)
 
         return run, (physics_states, jax.random.key(args.seed + 2)), batch * args.steps
+    if measurement == "step":
+        dynamics = arena.dynamics
+        k = physics_states.picker_positions.shape[1]
+        control = jnp.concatenate([jnp.full((batch, k, 3), 0.003), jnp.ones((batch, k, 1))], axis=-1)
+
+        def run(carry):
+            physics, total = carry
+
+            def body(total, t):
+                nudged = physics.replace(positions=physics.positions + 1e-9 * t.astype(jnp.float32))
+                out = jax.vmap(dynamics.step, in_axes=(0, 0, None))(nudged, control, params.dynamics)
+                return total + out.positions[:, 0, 0].sum(), None
+
+            total, _ = jax.lax.scan(body, total, jnp.arange(args.steps))
+            return physics, total
+
+        return run, (physics_states, jnp.zeros(())), batch * args.steps
     camera = jax.tree_util.tree_map(jnp.float32, camera_lib.CameraParams())
     mesh = physics_states.mesh
 
@@ -130,14 +151,14 @@ def markdown(env: dict, rows: list[dict], args) -> str:
              f"{args.resolution} x {args.resolution} observations. Ratio: against SoftGym's ~"
              f"{SOFTGYM_ACTIONS_PER_S:g} actions/s ({SOFTGYM_STEPS_PER_S:g} FleX steps/s) per process.", "",
              "| B | solver | actions/s (act) | physics steps/s in act | actions/s (act+reset) "
-             "| physics steps/s (physics) | frames/s (render) | act vs SoftGym |",
-             "|---:|---|---:|---:|---:|---:|---:|---:|"]
+             "| physics steps/s (physics) | physics steps/s (step) | frames/s (render) | act vs SoftGym |",
+             "|---:|---|---:|---:|---:|---:|---:|---:|---:|"]
     for row in rows:
         r = row["results"]
         act = r.get("act", {}).get("per_s")
         cells = [fmt(act), fmt(None if act is None else act * steps_per_action),
                  fmt(r.get("act+reset", {}).get("per_s")), fmt(r.get("physics", {}).get("per_s")),
-                 fmt(r.get("render", {}).get("per_s")),
+                 fmt(r.get("step", {}).get("per_s")), fmt(r.get("render", {}).get("per_s")),
                  "-" if act is None else f"{act / SOFTGYM_ACTIONS_PER_S:.0f}x"]
         lines.append(f"| {row['batch']} | {row['solver']} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
@@ -151,7 +172,8 @@ def parse_args(argv=None):
     p.add_argument("--measurements", default=",".join(MEASUREMENTS),
                    help=f"comma-separated, from {list(MEASUREMENTS)} (default: all)")
     p.add_argument("--actions", type=int, default=4, help="actions per timed call (default 4)")
-    p.add_argument("--steps", type=int, default=68, help="physics steps per timed call of 'physics' (default 68)")
+    p.add_argument("--steps", type=int, default=68,
+                   help="physics steps per timed call of 'physics' and 'step' (default 68)")
     p.add_argument("--frames", type=int, default=8, help="renders per timed call of 'render' (default 8)")
     p.add_argument("--horizon", type=int, default=30, help="actions per episode for act+reset (default 30)")
     p.add_argument("--resolution", type=int, default=128, help="camera resolution (default 128)")
