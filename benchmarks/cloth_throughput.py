@@ -61,12 +61,19 @@ SOFTGYM_ACTIONS_PER_S = 9.0  # upper end of SoftGym's per-process rate, see the 
 SOFTGYM_STEPS_PER_S = 440.0
 
 
-def make(measurement: str, batch: int, solver: str, args):
-    """Returns ``(run, carry, units)``: ``run(carry) -> carry`` one timed call, ``units`` counted per call."""
-    arena = jarena.build_arena(f"{ARENA},resolution:{args.resolution},horizon:{args.horizon},solver:{solver},"
-                               f"substeps:{args.substeps}")
+def make(measurement: str, batch: int, solver: str, args, reset_solver: str | None = None):
+    """Returns ``(run, carry, units)``: ``run(carry) -> carry`` one timed call, ``units`` counted per call.
+
+    ``reset_solver``: the solver that crumples the starting cloths (untimed; default ``solver``), so that
+    measurements of several solvers can start from the same cloths."""
+    def build(solver):
+        return jarena.build_arena(f"{ARENA},resolution:{args.resolution},horizon:{args.horizon},solver:{solver},"
+                                  f"substeps:{args.substeps}")
+
+    arena = build(solver)
     params = arena.default_params()
-    states, _ = jax.jit(lambda k: jarena.batch_reset(arena, k, batch, params))(jax.random.key(args.seed))
+    starts = arena if reset_solver is None else build(reset_solver)
+    states, _ = jax.jit(lambda k: jarena.batch_reset(starts, k, batch, params))(jax.random.key(args.seed))
     jax.block_until_ready(states)
     if measurement in ("act", "act+reset"):
         reset_done = measurement == "act+reset"
