@@ -57,13 +57,19 @@ def load_kernels(name: str, path: str) -> physics.Solver:
     return solver
 
 
-def final_positions(solver: str, batch: int, seed: int) -> np.ndarray:
-    """Particle positions (B, N, 3) of ``batch`` crumpled cloths (crumpled by ``solver:auto``, the same for every
-    version) after one random pick-and-place with ``solver``."""
+def crumpled_starts(batch: int, seed: int):
+    """``batch`` crumpled cloths of the benchmark arena, crumpled once by ``solver:auto`` for every version."""
+    arena = jarena.build_arena(f"{cloth_throughput.ARENA},solver:auto")
+    params = arena.default_params()
+    states, _ = jax.jit(lambda k: jarena.batch_reset(arena, k, batch, params))(jax.random.key(seed))
+    return states
+
+
+def final_positions(solver: str, states, seed: int) -> np.ndarray:
+    """Particle positions (B, N, 3) of the cloths ``states`` after one random pick-and-place with ``solver``."""
     arena = jarena.build_arena(f"{cloth_throughput.ARENA},solver:{solver}")
     params = arena.default_params()
-    starts = jarena.build_arena(f"{cloth_throughput.ARENA},solver:auto")
-    states, _ = jax.jit(lambda k: jarena.batch_reset(starts, k, batch, params))(jax.random.key(seed))
+    batch = arena.privileged(states).physics.positions.shape[0]
     actions = jax.random.uniform(jax.random.key(seed + 1), (batch, arena.action_spec.shape[0]), minval=-1.0,
                                  maxval=1.0)
     states, _ = jax.jit(lambda s, a: jarena.batch_step(arena, s, a, params))(states, actions)
@@ -119,9 +125,10 @@ def main(argv=None) -> int:
     names = list(args.kernels)
     bits = {}
     if args.bits_batch:
-        reference = final_positions(names[0], args.bits_batch, args.seed)
+        starts = crumpled_starts(args.bits_batch, args.seed)
+        reference = final_positions(names[0], starts, args.seed)
         for name in names:
-            x = reference if name == names[0] else final_positions(name, args.bits_batch, args.seed)
+            x = reference if name == names[0] else final_positions(name, starts, args.seed)
             bits[name] = {"identical": bool(np.array_equal(x, reference)),
                           "max_difference_m": float(np.abs(x - reference).max())}
             print(f"bits {name}: identical to {names[0]}: {bits[name]['identical']} "
