@@ -52,8 +52,9 @@ LOOKAHEAD_ARENA = "cloth|domain:square_fabric,initial:crumpled,particles:10,reso
 
 @pytest.fixture(scope="module")
 def crumpled():
-    """The lookahead arena and its first episodes (of 24) whose start covers under 0.9 (a small cloth often
-    lands flat), reset once: their ids, the starts' normalised coverage, info and privileged state."""
+    """The lookahead arena and its first episodes (of 12: at least the 3 the tests use) whose start covers
+    under 0.9 (a small cloth often lands flat), reset once: their ids, the starts' normalised coverage, info and
+    privileged state."""
     arena = jarena.build_arena(LOOKAHEAD_ARENA)
 
     @jax.jit
@@ -61,9 +62,10 @@ def crumpled():
         state, info = jax.vmap(lambda e: arena.reset(episode=e))(episodes)
         return info, jax.vmap(arena.privileged)(state)
 
-    info, privileged = reset(jnp.arange(24))
+    info, privileged = reset(jnp.arange(12))
     start = np.asarray(info.metrics["normalised_coverage"])
     chosen = np.flatnonzero(start < 0.9)
+    assert len(chosen) >= 3, start
     return SimpleNamespace(arena=arena, episodes=chosen, start=start[chosen], info=_take(info, chosen),
                            privileged=_take(privileged, chosen))
 
@@ -93,18 +95,18 @@ def test_the_lookahead_takes_the_proposal_that_covers_most(crumpled):
 
         return jax.vmap(one)(privileged, taken)
 
-    now, tried, taken = (np.asarray(x) for x in check(_take(crumpled.info, slice(3)),
-                                                      _take(crumpled.privileged, slice(3))))
-    assert tried.shape == (3, 33 + 16 + 4)  # the defaults: 16 edge handles twice, 4 x 4 inner particles, 4 tips
+    now, tried, taken = (np.asarray(x) for x in check(_take(crumpled.info, slice(2)),
+                                                      _take(crumpled.privileged, slice(2))))
+    assert tried.shape == (2, 33 + 16 + 4)  # the defaults: 16 edge handles twice, 4 x 4 inner particles, 4 tips
     assert (now < 0.9).all(), now  # the oracle acts (it idles from 0.999)
-    for i in range(3):
+    for i in range(2):
         assert len(np.unique(tried[i])) > 3, tried[i]  # the proposals differ
         assert taken[i] == tried[i].max(), (taken[i], tried[i])
         assert taken[i] >= tried[i, 0]  # never worse than the analytic pull
 
 
 def test_the_lookahead_flattens_more_than_the_analytic_pull(crumpled):
-    arena, episodes, before = crumpled.arena, crumpled.episodes[:4], crumpled.start[:4]
+    arena, episodes, before = crumpled.arena, crumpled.episodes[:3], crumpled.start[:3]
     results = {}
     for name, config in (("lookahead", {"arena": LOOKAHEAD_ARENA}), ("analytic", {"lookahead": False})):
         oracle = build_agent("oracle_cloth_flattening", config)
