@@ -69,8 +69,7 @@ def main(argv=None) -> int:
         raise SystemExit(f"{args.load} does not hold {args.batch} cloths of {cloth_throughput.ARENA}: save them "
                          f"again with the same --batch")
     physics = jax.tree_util.tree_unflatten(treedef, leaves)
-    k = physics.picker_positions.shape[1]
-    control = jnp.concatenate([jnp.full((args.batch, k, 3), 0.003), jnp.ones((args.batch, k, 1))], axis=-1)
+    control = cloth_throughput.step_control(args.batch, physics.picker_positions.shape[1])
     step = jax.jit(jax.vmap(arena.dynamics.step, in_axes=(0, 0, None)))
     out = step(physics, control, params.dynamics)
     print(f"stepped {args.batch} cloths: mean particle height {float(out.positions[..., 2].mean()):.4f} m")

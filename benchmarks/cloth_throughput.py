@@ -61,6 +61,12 @@ SOFTGYM_ACTIONS_PER_S = 9.0  # upper end of SoftGym's per-process rate, see the 
 SOFTGYM_STEPS_PER_S = 440.0
 
 
+def step_control(batch: int, num_pickers: int) -> jax.Array:
+    """float32 (batch, num_pickers, 4): the ``step`` measurement's picker control, closed and moving 3 mm along
+    each axis."""
+    return jnp.concatenate([jnp.full((batch, num_pickers, 3), 0.003), jnp.ones((batch, num_pickers, 1))], axis=-1)
+
+
 def make(measurement: str, batch: int, solver: str, args, reset_solver: str | None = None):
     """Returns ``(run, carry, units)``: ``run(carry) -> carry`` one timed call, ``units`` counted per call.
 
@@ -113,7 +119,7 @@ def make(measurement: str, batch: int, solver: str, args, reset_solver: str | No
     if measurement == "step":
         dynamics = arena.dynamics
         k = physics_states.picker_positions.shape[1]
-        control = jnp.concatenate([jnp.full((batch, k, 3), 0.003), jnp.ones((batch, k, 1))], axis=-1)
+        control = step_control(batch, k)
 
         def run(carry):
             physics, total = carry
