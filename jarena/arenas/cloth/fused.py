@@ -10,8 +10,9 @@ program per cloth. The arithmetic is the jax.numpy solver's, operation for opera
 How a program shares positions between its threads: Gauss-Seidel constraint passes, tethers and the
 self-collision read other particles' positions, so before each such read every thread stores its particles
 to a scratch array and waits at a barrier (``__syncthreads``), and waits again before the next store. Each
-particle finds its partner in a constraint colour from its own grid coordinates, and moves only itself, so
-no pass scatters.
+particle reads its role and partner in a constraint colour from a table (:func:`colour_roles`; reading it costs
+fewer instructions than finding them from the grid coordinates, and this kernel is bound by issuing instructions),
+and moves only itself, so no pass scatters.
 
 The neighbour search (:func:`neighbour_list`) takes the particles sorted by hashed cell from XLA; each program
 walks, for each of its particles, the candidates its 27 cells hold (but cells wholly beyond the radius), one
@@ -71,21 +72,38 @@ solve these (:func:`.physics._constraint_pairs` builds its pair masks from them)
 KINDS = ("stretch", "shear", "bend")
 
 
+@functools.cache
+def colour_roles(mesh: ClothMesh) -> np.ndarray:
+    """int32 (len(COLOURS) x padded_size(N),): each particle's role in each colour, ``4 x partner + first + 2 x
+    second`` (first: the pair's first particle; second: its second; partner: the other particle, the particle itself
+    clipped into the grid where it has no pair). A table read once per pass instead of the grid arithmetic of
+    :func:`_first_of_pair` (the same partners, so the same bits)."""
+    n, n_pad = mesh.num_particles, padded_size(mesh.num_particles)
+    p = np.arange(n_pad)
+    i, j = p // mesh.cols, p % mesh.cols
+    inside = p < n
+    roles = []
+    for di, dj, axis, div, colour, _ in COLOURS.tolist():
+        first = inside & np.asarray(_first_of_pair(i, j, di, dj, axis, div, colour, mesh.rows, mesh.cols))
+        fi, fj = i - di, j - dj
+        second = inside & (fi >= 0) & (fj >= 0) & (fj < mesh.cols) & np.asarray(
+            _first_of_pair(fi, fj, di, dj, axis, div, colour, mesh.rows, mesh.cols))
+        step = di * mesh.cols + dj
+        partner = np.clip(np.where(first, p + step, np.where(second, p - step, p)), 0, n - 1)
+        roles.append(4 * partner + first + 2 * second)
+    return np.concatenate(roles).astype(np.int32)
+
+
 def _first_of_pair(i, j, di, dj, axis, div, colour, rows, cols):
     """bool: particle ``(i, j)`` is the first particle of a pair of this colour."""
-    along = jnp.where(axis == 0, i, j)
+    along = np.where(axis == 0, i, j)
     return (i + di < rows) & (j + dj >= 0) & (j + dj < cols) & ((along // div) % 2 == colour)
 
 
-def _kernel(scal_ref, colours_ref, xv_ref, inv_mass_ref, holder_ref, offset_ref, tether_to_ref, tether_len_ref,
-            neighbours_ref, share_ref,
+def _kernel(scal_ref, colours_ref, roles_ref, xv_ref, inv_mass_ref, holder_ref, offset_ref, tether_to_ref,
+            tether_len_ref, neighbours_ref, share_ref,
             out_ref, x_s, prev_s, touch_s, *,
             mesh: ClothMesh, n_pad: int, substeps: int, num_pickers: int, max_neighbours: int, barrier):
-    rows, cols = mesh.rows, mesh.cols
-    n = rows * cols
-    p = jax.lax.broadcasted_iota(jnp.int32, (n_pad,), 0)
-    i, j = p // cols, p % cols
-    inside = p < n
     scalar = {name: scal_ref[k] for k, name in enumerate(SCALARS)}
     h = scalar["h"]
     w = inv_mass_ref[...]
@@ -108,15 +126,11 @@ def _kernel(scal_ref, colours_ref, xv_ref, inv_mass_ref, holder_ref, offset_ref,
 
     def constraints(x):
         def colour_pass(c, x):
-            di, dj, axis, div, colour, kind = (colours_ref[6 * c + f] for f in range(6))
-            alpha = scal_ref[kind]
+            alpha = scal_ref[colours_ref[6 * c + 5]]
             rest = scal_ref[len(SCALARS) + c]
-            first = inside & _first_of_pair(i, j, di, dj, axis, div, colour, rows, cols)
-            fi, fj = i - di, j - dj
-            second = inside & (fi >= 0) & (fj >= 0) & (fj < cols) & _first_of_pair(
-                fi, fj, di, dj, axis, div, colour, rows, cols)
-            step = di * cols + dj
-            partner = jnp.clip(jnp.where(first, p + step, jnp.where(second, p - step, p)), 0, n - 1)
+            role = roles_ref[pl.ds(c * n_pad, n_pad)]  # see colour_roles
+            first, second = (role & 1) != 0, (role & 2) != 0
+            partner = jax.lax.shift_right_logical(role, 2)
             share_positions(x)
             xq = [gather(x_s, partner, a) for a in range(3)]
             wq = inv_mass_ref[partner]
@@ -458,7 +472,8 @@ def run_substeps(mesh: ClothMesh, substeps: int, x, v, inv_mass, holder, offset,
     xv = jnp.concatenate([pad(c) for c in (*x, *v)])
     colours = jnp.asarray(np.pad(COLOURS.ravel(), (0, padded_size(COLOURS.size) - COLOURS.size)))
     out = _call(mesh, int(substeps), int(k), int(m), bool(interpret), num_warps)(
-        scal, colours, xv, pad(inv_mass), pad(holder, -1), jnp.concatenate([pad(c) for c in offset]),
+        scal, colours, jnp.asarray(colour_roles(mesh)), xv, pad(inv_mass), pad(holder, -1),
+        jnp.concatenate([pad(c) for c in offset]),
         rows(tether_to, -1), rows(tether_length), rows(neighbours, -1), rows(share))[0]
     parts = tuple(out[a * n_pad:a * n_pad + n] for a in range(6))
     return parts[:3], parts[3:]
