@@ -4,8 +4,13 @@
 tethers) and then runs ``substeps`` XPBD substeps. Written as jax.numpy, each substep is some forty XLA
 kernels that read and write every particle array in GPU memory; here one kernel program runs every substep
 of one cloth, its arrays in registers and its few shared arrays in the L1/L2 caches, and ``vmap`` gives one
-program per cloth. The arithmetic is the jax.numpy solver's, operation for operation and in the same order
-(:func:`.physics.substeps_xla`), so the two agree to float rounding (``tests/arenas/cloth/test_fused.py``).
+program per cloth. The arithmetic is the jax.numpy solver's (:func:`.physics.substeps_xla`), operation for
+operation and in the same order, so the two agree to float rounding (``tests/arenas/cloth/test_fused.py``), but
+for three rewrites that save instructions (this kernel is bound by issuing them) and give the same bits on an
+NVIDIA GPU (``benchmarks/cloth_kernels_ab.py``): a constraint pair's two moves as one, the self-collision's crowd
+relief per particle rather than per pair, and the contact normal as the difference times one reciprocal of the
+distance (on an H200 the same bits as three divisions, Triton's division being an approximate one; in the CPU
+interpreter they round apart).
 
 How a program shares positions between its threads: Gauss-Seidel constraint passes, tethers and the
 self-collision read other particles' positions, so before each such read every thread stores its particles
@@ -129,20 +134,20 @@ def _kernel(scal_ref, colours_ref, roles_ref, xv_ref, inv_mass_ref, holder_ref, 
             alpha = scal_ref[colours_ref[6 * c + 5]]
             rest = scal_ref[len(SCALARS) + c]
             role = roles_ref[pl.ds(c * n_pad, n_pad)]  # see colour_roles
-            first, second = (role & 1) != 0, (role & 2) != 0
+            paired = (role & 3) != 0
             partner = jax.lax.shift_right_logical(role, 2)
             share_positions(x)
             xq = [gather(x_s, partner, a) for a in range(3)]
             wq = inv_mass_ref[partner]
-            # the pair (a, b) is (p, q) for a first particle and (q, p) for a second one
-            diff = [jnp.where(first, u - v, v - u) for u, v in zip(x, xq, strict=True)]
-            wa, wb = jnp.where(first, w, wq), jnp.where(first, wq, w)
+            # the jax.numpy solver's pair (a, b) is (p, q) for a first particle and (q, p) for a second one; its
+            # moves, a + w_a s (a - b) and b - w_b s (a - b), are both p + w_p s (p - q) to the bit (negation and
+            # the sum w_a + w_b are exact either way round)
+            diff = [u - v for u, v in zip(x, xq, strict=True)]
             dist = jnp.sqrt(collision.dot_list(diff, diff) + 1e-12)
-            denom = wa + wb + alpha
-            lam = jnp.where((first | second) & (denom > 0), -(dist - rest) / jnp.maximum(denom, 1e-12), 0.0)
+            denom = w + wq + alpha
+            lam = jnp.where(paired & (denom > 0), -(dist - rest) / jnp.maximum(denom, 1e-12), 0.0)
             scale = lam / dist
-            return tuple(jnp.where(first, c + wa * (scale * d), jnp.where(second, c + -wb * (scale * d), c))
-                         for c, d in zip(x, diff, strict=True))
+            return tuple(jnp.where(paired, c + w * (scale * d), c) for c, d in zip(x, diff, strict=True))
 
         return list(jax.lax.fori_loop(0, len(COLOURS), colour_pass, tuple(x)))
 
@@ -173,30 +178,34 @@ def _kernel(scal_ref, colours_ref, roles_ref, xv_ref, inv_mass_ref, holder_ref, 
             return touching + jnp.where((nb >= 0) & (dist < distance), 1.0, 0.0)
 
         touching = jax.lax.fori_loop(0, max_neighbours, count, jnp.zeros((n_pad,), jnp.float32))
-        touch_s[...] = touching
+        # the pushes' relaxation, min(1, RELAXATION / max(crowd, 1)) with crowd the larger count of the pair, is the
+        # smaller of the two particles' own reliefs (it falls as the count rises): one division per particle, not
+        # one per slot
+        relief = jnp.minimum(1.0, RELAXATION / jnp.maximum(touching, 1.0))
+        touch_s[...] = relief
         barrier()
         moved = [c - q for c, q in zip(x, x_prev, strict=True)]
 
-        def push(k, total):
+        def push(k):
             nb = slot(neighbours_ref, k)
             jj = jnp.maximum(nb, 0)
             xj = [gather(x_s, jj, a) for a in range(3)]
             diff = [c - u for c, u in zip(x, xj, strict=True)]
             dist = jnp.sqrt(collision.dot_list(diff, diff) + 1e-12)
-            normal = [d / dist for d in diff]
+            inv = 1.0 / dist  # one reciprocal for the three divisions (the same bits on the GPU: see the top)
+            normal = [d * inv for d in diff]
             depth = jnp.where((nb >= 0) & (dist < distance), distance - dist, 0.0)
             motion = [m - (u - gather(prev_s, jj, a)) for a, (m, u) in enumerate(zip(moved, xj, strict=True))]
             along = collision.dot_list(motion, normal)
             tangential = [m - along * nn for m, nn in zip(motion, normal, strict=True)]
             slide = jnp.sqrt(collision.dot_list(tangential, tangential) + 1e-12)
             grip = jnp.where(depth > 0, jnp.minimum(1.0, friction * depth / slide), 0.0)
-            crowd = jnp.maximum(touching, touch_s[jj])
-            s = slot(share_ref, k) * jnp.minimum(1.0, RELAXATION / jnp.maximum(crowd, 1.0))
-            push = [(s * depth) * nn - (s * grip) * t for nn, t in zip(normal, tangential, strict=True)]
-            # the first slot's push alone, then the others added in order, as collision.separate
-            return tuple(jnp.where(k == 0, u, t + u) for t, u in zip(total, push, strict=True))
+            s = slot(share_ref, k) * jnp.minimum(relief, touch_s[jj])
+            return [(s * depth) * nn - (s * grip) * t for nn, t in zip(normal, tangential, strict=True)]
 
-        total = jax.lax.fori_loop(0, max_neighbours, push, tuple(jnp.zeros((n_pad,), jnp.float32) for _ in range(3)))
+        # the first slot's push, then the others added in order, as collision.separate
+        total = jax.lax.fori_loop(1, max_neighbours, lambda k, total: tuple(
+            t + u for t, u in zip(total, push(k), strict=True)), tuple(push(0)))
         return [c + t for c, t in zip(x, total, strict=True)]
 
     def floor(x, x_prev):
