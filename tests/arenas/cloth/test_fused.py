@@ -63,6 +63,23 @@ def test_a_cloth_solver_must_be_known():
         ClothPhysics(MESH, solver="cuda")
 
 
+def test_each_colour_role_names_the_pairs_the_jax_numpy_solver_solves_in_that_colour():
+    from jarena.arenas.cloth.physics import _constraint_pairs
+
+    n, n_pad = MESH.num_particles, fused.padded_size(MESH.num_particles)
+    roles = fused.colour_roles(MESH).reshape(len(fused.COLOURS), n_pad)
+    for role, pairs in zip(roles, _constraint_pairs(MESH.rows, MESH.cols), strict=True):
+        i, j = np.nonzero(pairs.mask)
+        j = j + (1 if pairs.dj < 0 else 0)
+        expected = {(int(a), int(a + pairs.di * MESH.cols + pairs.dj)) for a in i * MESH.cols + j}
+        first, second, partner = (role & 1) != 0, (role & 2) != 0, role >> 2
+        assert {(int(a), int(partner[a])) for a in np.nonzero(first)[0]} == expected
+        assert {(int(partner[b]), int(b)) for b in np.nonzero(second)[0]} == expected
+        assert not (first & second).any() and not (first | second)[n:].any()  # padding pairs with none
+        alone = np.nonzero(~first[:n] & ~second[:n])[0]
+        assert (partner[alone] == alone).all()  # a particle without a pair is its own partner
+
+
 def test_kernel_programs_have_power_of_two_sizes():
     assert [fused.padded_size(n) for n in (63, 64, 65, 1600, 4096)] == [64, 64, 128, 2048, 4096]
 
