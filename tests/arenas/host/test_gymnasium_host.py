@@ -184,6 +184,19 @@ def test_ppo_trains_on_gymnasium_cartpole(host_cartpole):
     assert result.evaluation.summary()["return_mean"] > 200  # random: ~22
 
 
+@pytest.fixture
+def unoptimised_compiles():
+    """XLA optimises less while the test runs. A host arena's programs hold its callbacks' addresses, so the
+    persistent compilation cache never holds them and every run compiles them again: for short runs the
+    compiler's optimisation passes cost more than they save (Dreamer's training program: 23 s -> 10 s to
+    compile on a CPU, the same evaluation)."""
+    previous = jax.config.read("jax_disable_most_optimizations")
+    jax.config.update("jax_disable_most_optimizations", True)
+    yield
+    jax.config.update("jax_disable_most_optimizations", previous)
+
+
+@pytest.mark.usefixtures("unoptimised_compiles")
 @pytest.mark.parametrize("agent_name,config", [
     ("sac", {"total_steps": 600, "learning_starts": 200, "num_arenas": 2, "batch_size": 32, "hidden": [16, 16]}),
     ("dreamer", {"total_steps": 400, "learning_starts": 200, "num_arenas": 2, "rollout_length": 50,
@@ -241,6 +254,7 @@ def test_dict_and_image_spaces_become_observation_keys_and_odd_spaces_are_refuse
         observation_spec(spaces.Box(0, 1, (2,), bool))
 
 
+@pytest.mark.usefixtures("unoptimised_compiles")
 def test_a_resumed_run_on_a_host_arena_starts_new_episodes_in_this_process(tmp_path, capsys):
     """A checkpoint holds handles on the simulators of the process that wrote it, not their state: the resumed
     run takes its arena states and infos from its own reset, and keeps everything else from the checkpoint."""
