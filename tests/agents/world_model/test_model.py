@@ -139,7 +139,9 @@ def test_a_tiny_model_learns_pendulum_well_enough_to_plan(pendulum):
             params, opt_state, metrics = wm.train_step(model, optimizer, params, opt_state, seq, k2)
             return (params, opt_state), metrics["model_loss"]
 
-        return jax.lax.scan(body, (params, opt_state), jax.random.split(key, 1000))
+        # 750 updates: with every key offset by 0, 100 or 200, open-loop error / hold 0.19, 0.24, 0.14 and reward
+        # error / hold 0.18, 0.20, 0.17 (1,000 updates, offset 0 and 200: 0.17, 0.19 and 0.19, 0.20)
+        return jax.lax.scan(body, (params, opt_state), jax.random.split(key, 750))
 
     (params, _), losses = train(params, optimizer.init(params), jax.random.key(3))
     assert losses[-100:].mean() < 0.5 * losses[:10].mean()
