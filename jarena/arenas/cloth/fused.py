@@ -101,7 +101,7 @@ def colour_roles(mesh: ClothMesh) -> np.ndarray:
 
 def _first_of_pair(i, j, di, dj, axis, div, colour, rows, cols):
     """bool: particle ``(i, j)`` is the first particle of a pair of this colour."""
-    along = np.where(axis == 0, i, j)
+    along = i if axis == 0 else j
     return (i + di < rows) & (j + dj >= 0) & (j + dj < cols) & ((along // div) % 2 == colour)
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from jarena.arenas.cloth import fused
 from jarena.arenas.cloth.mesh import ClothMesh
-from jarena.arenas.cloth.physics import ClothPhysics, neighbours_xla
+from jarena.arenas.cloth.physics import ClothPhysics, _constraint_pairs, neighbours_xla
 
 MESH = ClothMesh(rows=7, cols=9, spacing=0.02)  # rectangular, and 63 particles pad to 64
 
@@ -64,8 +64,6 @@ def test_a_cloth_solver_must_be_known():
 
 
 def test_each_colour_role_names_the_pairs_the_jax_numpy_solver_solves_in_that_colour():
-    from jarena.arenas.cloth.physics import _constraint_pairs
-
     n, n_pad = MESH.num_particles, fused.padded_size(MESH.num_particles)
     roles = fused.colour_roles(MESH).reshape(len(fused.COLOURS), n_pad)
     for role, pairs in zip(roles, _constraint_pairs(MESH.rows, MESH.cols), strict=True):
