@@ -19,12 +19,15 @@ particle reads its role and partner in a constraint colour from a table (:func:`
 fewer instructions than finding them from the grid coordinates, and this kernel is bound by issuing instructions),
 and moves only itself, so no pass scatters.
 
-The neighbour search (:func:`neighbour_list`) takes the particles sorted by hashed cell from XLA; each program
-walks, for each of its particles, the candidates its 27 cells hold (but cells wholly beyond the radius), one
-candidate per iteration (so a program iterates as often as its busiest particle has candidates, not 27 times its
-fullest cell), keeps those within the radius with their distances, counts them within each reach of
-:data:`.collision.REACH`, and lists the pairs under both particles' reach: the pairs of
-:func:`.collision.neighbour_list` in the same order, without its cap on candidates.
+The neighbour search (:func:`neighbour_list`) takes the particles sorted by hashed cell from XLA, and runs in two
+kernels. In the walk, programs of :data:`LIST_BLOCK` particles (one warp each), dealt the cloth's particles busiest
+first, walk for each of their particles the candidates its 27 cells hold (but cells wholly beyond the radius), one
+candidate per iteration, so that a program iterates as often as its own busiest particle has candidates (a crumpled
+cloth's busiest particle has about twice the average; one program per cloth iterated that often for every particle),
+keep those within the radius with their distances, and count them within each reach of :data:`.collision.REACH`.
+The listing, one program per cloth, lists the pairs under both particles' reach: the pairs of
+:func:`.collision.neighbour_list` in the same order, without its cap on candidates. Which program walks a particle
+changes nothing in what it finds, so the deal changes the time and not the bits.
 
 On a CPU the kernel runs in Pallas' interpreter (for tests; slow), where barriers are not needed.
 """
@@ -250,122 +253,171 @@ the margin covers the rounding of ``floor(x / radius)`` (float32 positions: ~1e-
 the radius is skipped."""
 
 
-def _list_kernel(radius_ref, offsets_ref, x_ref, xs_ref, cell_ref, order_ref, sorted_cell_ref, start_ref, count_ref,
-                 out_ref, reach_s, first_s, end_s, key_s, found_s, d2_s, overflow_ref, *,
-                 mesh: ClothMesh, n_pad: int, buckets: int, max_neighbours: int, slots: int, barrier):
-    """:func:`.collision.neighbour_list` for one cloth, without its candidate slots (every candidate is read).
+LIST_BLOCK = 64
+"""Particles per program of the neighbour search's walk (:func:`_walk_kernel`): the particles are dealt to programs
+busiest first, so that a program walks as often as its own busiest particle has candidates, not the cloth's."""
 
-    ``x_ref``: the positions (3 rows of ``n_pad``); ``xs_ref``: the same in the sorted order (``x[order]``).
-    Each particle walks its candidates (the runs of the sorted order its 27 cells hold, laid end to end, but for
-    the cells wholly beyond the radius: 6.4 of the 27 on average for a particle anywhere in its cell) one per iteration,
-    so a program iterates as often as its busiest particle has candidates. The candidates within the radius (at
-    most ``slots`` per particle) are kept with their squared distances, and the reach and the list are made from
-    those; if a particle has more, the walk runs again to list.
-    """
-    rows, cols = mesh.rows, mesh.cols
-    n, m = rows * cols, max_neighbours
-    p = jax.lax.broadcasted_iota(jnp.int32, (n_pad,), 0)
-    i, j = p // cols, p % cols
-    inside = p < n
-    radius = radius_ref[0]
+
+def _cells_of(offsets_ref, radius, cell, x, inside, buckets, count_at):
+    """For each of the 27 cells around each particle, in the order read: ``(block, bucket, within)`` (within: the
+    cell's box lies within the radius of the particle, with a margin over the rounding of the cells: a cell
+    farther holds no pair of it). ``count_at(bucket, within)``: the particles in the bucket (0 where not within)."""
     r2 = radius * radius
-    x = [x_ref[a * n_pad:(a + 1) * n_pad] for a in range(3)]
-    cell = [cell_ref[a * n_pad:(a + 1) * n_pad] for a in range(3)]  # the cells the particles were sorted by
-    zeros = jnp.zeros((n_pad,), jnp.int32)
-
-    def run_of_cell(o, carry):
-        # the nonempty cells, in the order read, as runs of the sorted order: run r's candidate t (t counts
-        # every run's candidates end to end) is at place first + t, while t < end
-        runs, total = carry
+    for o in range(27):
         offset = [offsets_ref[3 * o + a] for a in range(3)]
         block = [c + d for c, d in zip(cell, offset, strict=True)]
         bucket = collision.cell_hash(block, buckets)
-        # a cell farther than the radius from the particle holds no pair of it: its run is not read (its gap
-        # to the particle's cell box, with a margin over the rounding of the cells, beyond the radius)
         gap = [jnp.where(d > 0, (c + 1).astype(jnp.float32) * radius - u,
                          jnp.where(d < 0, u - c.astype(jnp.float32) * radius, 0.0))
                for c, d, u in zip(cell, offset, x, strict=True)]
         gap = [jnp.maximum(g, 0.0) for g in gap]
         within = inside & (collision.dot_list(gap, gap) < r2 * CELL_MARGIN)
-        count = plgpu.load(count_ref.at[bucket], mask=within, other=0)
-        row = jnp.minimum(runs, 26) * n_pad + p
+        yield block, bucket, within, count_at(bucket, within)
+
+
+def _walk(tables, refs, column, i, j, x, total, r2, n, n_pad, cols, visit, carry):
+    """``visit(carry, q, d2, valid)`` for every candidate ``q`` of the 27 cells of the particles at grid ``(i, j)``,
+    in the order read.
+
+    ``tables``: ``(first, end, key)`` refs, each particle's nonempty cells as runs of the sorted order (row r:
+    its r-th run, in the particle's ``column``); ``refs``: ``(order, sorted_cell, xs)``. Each lane walks one
+    candidate per iteration, so the loop runs as often as the lanes' busiest particle has candidates."""
+    first_s, end_s, key_s = tables
+    order_ref, sorted_cell_ref, xs_ref = refs
+    zeros = jnp.zeros(column.shape, jnp.int32)
+
+    def candidate(t, state):
+        run, first, end, key, carry = state
+        active = t < total
+        later = active & (t >= end)  # the run is read: the next one
+        run = run + later.astype(jnp.int32)
+        row = jnp.minimum(run, 26) * n_pad + column
+        # only the lanes moving to their next run read it (masked loads: the others issue no read)
+        first = plgpu.load(first_s.at[row], mask=later, other=first)
+        end = plgpu.load(end_s.at[row], mask=later, other=end)
+        key = plgpu.load(key_s.at[row], mask=later, other=key)
+        place = jnp.clip(first + t, 0, n - 1)
+        # a particle done with its candidates reads nothing more
+        q = plgpu.load(order_ref.at[place], mask=active, other=0)
+        # q lies in the cell queried (not a hash collision)
+        same = active & (plgpu.load(sorted_cell_ref.at[place], mask=active, other=0) == key)
+        qi = jax.lax.div(q, jnp.int32(cols))  # q >= 0
+        adjacent = (jnp.abs(qi - i) <= 1) & (jnp.abs(q - qi * cols - j) <= 1)
+        near = same & ~adjacent
+        # the candidate's position in the sorted copy, read beside its index rather than after it (one
+        # dependent read fewer per iteration; the same values)
+        d = [plgpu.load(xs_ref.at[place + a * n_pad], mask=active, other=0.0) - x[a] for a in range(3)]
+        d2 = collision.dot_list(d, d)
+        return run, first, end, key, visit(carry, q, d2, near & (d2 < r2))
+
+    state = (zeros, plgpu.load(first_s.at[column]), plgpu.load(end_s.at[column]),
+             plgpu.load(key_s.at[column]), carry)
+    return jax.lax.fori_loop(0, jnp.max(total), candidate, state)[-1]
+
+
+def _count_within(counts, q, d2, valid, r2):
+    return tuple(c + (valid & (d2 < r2 * f)).astype(jnp.int32) for c, f in zip(counts, collision.REACH,
+                                                                               strict=True))
+
+
+def _from_kept(found_s, d2_s, column, found, n_pad, visit, carry):
+    """``visit(carry, q, d2, valid)`` for the candidates within the radius the walk kept, in the order read."""
+    def one(k, carry):
+        listed = k < found
+        return visit(carry, plgpu.load(found_s.at[k * n_pad + column], mask=listed, other=0),
+                     plgpu.load(d2_s.at[k * n_pad + column], mask=listed, other=0.0), listed)
+    return jax.lax.fori_loop(0, jnp.max(found), one, carry)
+
+
+def _walk_kernel(radius_ref, offsets_ref, deal_ref, x_ref, xs_ref, cell_ref, order_ref, sorted_cell_ref, start_ref,
+                 count_ref, first_s, end_s, key_s, total_ref, found_ref, found_s, d2_s, reach_ref, *,
+                 mesh: ClothMesh, n_pad: int, block: int, buckets: int, max_neighbours: int, slots: int, barrier):
+    """The walk of :func:`neighbour_list` for ``block`` particles of one cloth (those the program's place in
+    ``deal_ref`` names): their runs, the candidates within the radius (at most ``slots`` kept per particle), their
+    counts within each reach and so their reach. Writes each particle's column ``p`` of the tables."""
+    cols, n = mesh.cols, mesh.num_particles
+    here = pl.program_id(0) * block + jax.lax.broadcasted_iota(jnp.int32, (block,), 0)  # columns of the tables
+    p = deal_ref[here]
+    i, j = p // cols, p % cols
+    inside = p < n
+    radius = radius_ref[0]
+    r2 = radius * radius
+    x = [x_ref[p + a * n_pad] for a in range(3)]
+    cell = [cell_ref[p + a * n_pad] for a in range(3)]  # the cells the particles were sorted by
+    zeros = jnp.zeros((block,), jnp.int32)
+    runs, total = zeros, zeros
+    # the nonempty cells, in the order read, as runs of the sorted order: run r's candidate t (t counts every
+    # run's candidates end to end) is at place first + t, while t < end
+    for block_cell, bucket, _, count in _cells_of(offsets_ref, radius, cell, x, inside, buckets, lambda b, w: (
+            plgpu.load(count_ref.at[b], mask=w, other=0))):
+        row = jnp.minimum(runs, 26) * n_pad + here
         first = plgpu.load(start_ref.at[bucket], mask=count > 0, other=0)  # an empty cell's is not read
         plgpu.store(first_s.at[row], first - total, mask=count > 0)
         plgpu.store(end_s.at[row], total + count, mask=count > 0)
-        plgpu.store(key_s.at[row], collision.cell_key(block), mask=count > 0)
-        return runs + (count > 0).astype(jnp.int32), total + count
-
-    _, total = jax.lax.fori_loop(0, 27, run_of_cell, (zeros, zeros))
+        plgpu.store(key_s.at[row], collision.cell_key(block_cell), mask=count > 0)
+        runs, total = runs + (count > 0).astype(jnp.int32), total + count
+    total_ref[here] = total
     barrier()
 
-    def walk(visit, carry):
-        """``visit(carry, q, d2, valid)`` for every candidate ``q`` of the 27 cells, in the order read."""
-        def candidate(t, state):
-            run, first, end, key, carry = state
-            active = t < total
-            later = active & (t >= end)  # the run is read: the next one
-            run = run + later.astype(jnp.int32)
-            row = jnp.minimum(run, 26) * n_pad + p
-            # only the lanes moving to their next run read it (masked loads: the others issue no read)
-            first = plgpu.load(first_s.at[row], mask=later, other=first)
-            end = plgpu.load(end_s.at[row], mask=later, other=end)
-            key = plgpu.load(key_s.at[row], mask=later, other=key)
-            place = jnp.clip(first + t, 0, n - 1)
-            # a particle done with its candidates (most are, in most iterations: the busiest sets the count)
-            # reads nothing more
-            q = plgpu.load(order_ref.at[place], mask=active, other=0)
-            # q lies in the cell queried (not a hash collision)
-            same = active & (plgpu.load(sorted_cell_ref.at[place], mask=active, other=0) == key)
-            qi = jax.lax.div(q, jnp.int32(cols))  # q >= 0
-            adjacent = (jnp.abs(qi - i) <= 1) & (jnp.abs(q - qi * cols - j) <= 1)
-            near = same & ~adjacent
-            # the candidate's position in the sorted copy, read beside its index rather than after it (one
-            # dependent read fewer per iteration; the same values)
-            d = [plgpu.load(xs_ref.at[place + a * n_pad], mask=active, other=0.0) - x[a] for a in range(3)]
-            d2 = collision.dot_list(d, d)
-            return run, first, end, key, visit(carry, q, d2, near & (d2 < r2))
-
-        state = (zeros, first_s[0:n_pad], end_s[0:n_pad], key_s[0:n_pad], carry)
-        return jax.lax.fori_loop(0, jnp.max(total), candidate, state)[-1]
-
     def keep(found, q, d2, valid):
-        row = jnp.minimum(found, slots - 1) * n_pad + p
+        row = jnp.minimum(found, slots - 1) * n_pad + here
         plgpu.store(found_s.at[row], q, mask=valid & (found < slots))
         plgpu.store(d2_s.at[row], d2, mask=valid & (found < slots))
         return found + valid.astype(jnp.int32)
 
-    found = walk(keep, zeros)
-    kept = jnp.max(found) <= slots
-
-    def from_kept(visit, carry):
-        def one(k, carry):
-            listed = k < found
-            return visit(carry, plgpu.load(found_s.at[k * n_pad + p], mask=listed, other=0),
-                         plgpu.load(d2_s.at[k * n_pad + p], mask=listed, other=0.0), listed)
-        return jax.lax.fori_loop(0, jnp.max(found), one, carry)
+    refs = (order_ref, sorted_cell_ref, xs_ref)
+    tables = (first_s, end_s, key_s)
+    found = _walk(tables, refs, here, i, j, x, total, r2, n, n_pad, cols, keep, zeros)
+    found_ref[here] = found
+    barrier()
+    counts = tuple(zeros for _ in collision.REACH)
 
     def count_within(counts, q, d2, valid):
-        return tuple(c + (valid & (d2 < r2 * f)).astype(jnp.int32) for c, f in zip(counts, collision.REACH,
-                                                                                   strict=True))
+        return _count_within(counts, q, d2, valid, r2)
 
-    counts = tuple(zeros for _ in collision.REACH)
-    counts = jax.lax.cond(kept, lambda: from_kept(count_within, counts), lambda: walk(count_within, counts))
-    reach = collision.reach_of(list(counts), r2, m)
-    reach_s[...] = reach
+    counts = jax.lax.cond(jnp.max(found) <= slots,
+                          lambda: _from_kept(found_s, d2_s, here, found, n_pad, count_within, counts),
+                          lambda: _walk(tables, refs, here, i, j, x, total, r2, n, n_pad, cols, count_within, counts))
+    reach_ref[p] = collision.reach_of(list(counts), r2, max_neighbours)
+
+
+def _list_kernel(radius_ref, deal_ref, x_ref, xs_ref, order_ref, sorted_cell_ref, first_s, end_s, key_s, total_ref,
+                 found_ref, found_s, d2_s, reach_ref, out_ref, overflow_ref, *,
+                 mesh: ClothMesh, n_pad: int, max_neighbours: int, slots: int, barrier):
+    """The listing of :func:`neighbour_list` for one cloth, from the walk's tables: the pairs under both
+    particles' reach, in the order read (the candidates kept; a particle that had more walks again)."""
+    rows, cols = mesh.rows, mesh.cols
+    n, m = rows * cols, max_neighbours
+    here = jax.lax.broadcasted_iota(jnp.int32, (n_pad,), 0)  # columns of the walk's tables
+    p = deal_ref[...]
+    i, j = p // cols, p % cols
+    radius = radius_ref[0]
+    r2 = radius * radius
+    reach = reach_ref[p]
+    found = found_ref[...]
     for k in range(m):
         out_ref[k * n_pad:(k + 1) * n_pad] = jnp.full((n_pad,), -1, jnp.int32)
     barrier()
 
     def write(listed_count, q, d2, valid):
-        listed = valid & (d2 < jnp.minimum(reach, reach_s[jnp.clip(q, 0, n - 1)]))
+        listed = valid & (d2 < jnp.minimum(reach, reach_ref[jnp.clip(q, 0, n - 1)]))
         plgpu.store(out_ref.at[jnp.minimum(listed_count, m - 1) * n_pad + p], q, mask=listed & (listed_count < m))
         return listed_count + listed.astype(jnp.int32)
 
-    listed_count = jax.lax.cond(kept, lambda: from_kept(write, zeros), lambda: walk(write, zeros))
+    zeros = jnp.zeros((n_pad,), jnp.int32)
+
+    def walk_again():
+        x = [x_ref[p + a * n_pad] for a in range(3)]
+        return _walk((first_s, end_s, key_s), (order_ref, sorted_cell_ref, xs_ref), here, i, j, x, total_ref[...],
+                     r2, n, n_pad, cols, write, zeros)
+
+    listed_count = jax.lax.cond(jnp.max(found) <= slots,
+                                lambda: _from_kept(found_s, d2_s, here, found, n_pad, write, zeros), walk_again)
     overflow = jnp.maximum(listed_count - m, 0)
     overflow_ref[...] = overflow
 
     def drop_one_sided():
+        p = here
         # where a particle's slots ran out, a pair may be listed by one of its particles only: unlist it
         barrier()
         keep = []
@@ -383,40 +435,74 @@ def _list_kernel(radius_ref, offsets_ref, x_ref, xs_ref, cell_ref, order_ref, so
     jax.lax.cond(jnp.max(overflow) > 0, drop_one_sided, lambda: None)
 
 
+def candidate_counts(cell: jax.Array, x: jax.Array, radius: jax.Array, count: jax.Array) -> jax.Array:
+    """int32 (N,): the candidates each particle walks in :func:`neighbour_list` (the particles of its 27 cells
+    but those wholly beyond the radius), in jax.numpy: the walk's programs are dealt particles busiest first."""
+    offsets = jnp.asarray(collision.OFFSETS.ravel())
+    inside = jnp.ones(x.shape[:1], bool)
+    total = jnp.zeros(x.shape[:1], jnp.int32)
+    for *_, c in _cells_of(offsets, radius, collision.components(cell), collision.components(x), inside,
+                           count.shape[0], lambda b, w: jnp.where(w, count[b], 0)):
+        total = total + c
+    return total
+
+
 @functools.cache
-def _list_call(mesh: ClothMesh, max_neighbours: int, slots: int, interpret: bool, num_warps: int | None):
+def _list_calls(mesh: ClothMesh, max_neighbours: int, slots: int, interpret: bool, num_warps: int | None):
     n_pad = padded_size(mesh.num_particles)
+    block = min(LIST_BLOCK, n_pad)
     barrier, extra = _backend(interpret, num_warps, n_pad)
-    kernel = functools.partial(_list_kernel, mesh=mesh, n_pad=n_pad, buckets=collision.num_buckets(
-        mesh.num_particles), max_neighbours=max_neighbours, slots=slots, barrier=barrier)
+    _, walk_extra = _backend(interpret, max(1, block // 64), block)  # two particles per thread
     i32, f32 = jnp.int32, jnp.float32
-    shapes = [(max_neighbours, i32), (1, f32), (27, i32), (27, i32), (27, i32), (slots, i32), (slots, f32), (1, i32)]
-    return pl.pallas_call(kernel, out_shape=tuple(jax.ShapeDtypeStruct((rows * n_pad,), dtype)
-                                                  for rows, dtype in shapes), **extra)
+    walk = pl.pallas_call(
+        functools.partial(_walk_kernel, mesh=mesh, n_pad=n_pad, block=block, buckets=collision.num_buckets(
+            mesh.num_particles), max_neighbours=max_neighbours, slots=slots, barrier=barrier),
+        out_shape=tuple(jax.ShapeDtypeStruct((rows * n_pad,), dtype) for rows, dtype in [
+            (27, i32), (27, i32), (27, i32), (1, i32), (1, i32), (slots, i32), (slots, f32), (1, f32)]),
+        grid=(n_pad // block,), **walk_extra)
+    listing = pl.pallas_call(
+        functools.partial(_list_kernel, mesh=mesh, n_pad=n_pad, max_neighbours=max_neighbours, slots=slots,
+                          barrier=barrier),
+        out_shape=(jax.ShapeDtypeStruct((max_neighbours * n_pad,), i32), jax.ShapeDtypeStruct((n_pad,), i32)),
+        **extra)
+    return walk, listing
 
 
 def neighbour_list(mesh: ClothMesh, x: jax.Array, radius: jax.Array, *, max_neighbours: int = 16, slots: int = 64,
                    interpret: bool | None = None, num_warps: int | None = None) -> tuple[jax.Array, jax.Array]:
-    """:func:`.collision.neighbour_list` of one cloth's positions ``x`` (N, 3), grid neighbours excluded, as a
-    kernel: the same pairs in the same order wherever the jax.numpy list's ``candidates`` slots suffice (this
-    one reads every candidate). ``slots``: the candidates within ``radius`` a particle keeps from its walk for the
-    listing (if one has more, its program walks twice more: slower, same result; 64 is fastest on an H100 for
-    crumpled 40 x 40 cloths). The kernel's scratch arrays take (M + 2 x slots + 83) x 4 bytes per padded particle:
-    1.9 MB of GPU memory per 40 x 40 cloth. ``num_warps``: per program (default :func:`default_warps`). Returns int32
+    """:func:`.collision.neighbour_list` of one cloth's positions ``x`` (N, 3), grid neighbours excluded, as two
+    kernels: the same pairs in the same order wherever the jax.numpy list's ``candidates`` slots suffice (these
+    read every candidate).
+
+    The walk (:func:`_walk_kernel`): programs of :data:`LIST_BLOCK` particles, dealt busiest first (by
+    :func:`candidate_counts`), each walk the candidates of its particles' 27 cells (but cells wholly beyond the
+    radius), one candidate per iteration, keep those within the radius with their squared distances, and count
+    them within each reach of :data:`.collision.REACH`. The listing (:func:`_list_kernel`, one program per
+    cloth): the pairs under both particles' reach. ``slots``: the candidates within ``radius`` a particle keeps
+    from its walk for the listing (if one has more, its programs walk again: slower, same result). The scratch
+    arrays take (max_neighbours + 2 x slots + 85) x 4 bytes per padded particle. ``num_warps``: of the listing (default
+    :func:`default_warps`; the walk's programs take one warp per 64 particles). Returns int32
     (N, max_neighbours) and the int32 overflow (listed pairs past a particle's slots)."""
     n, n_pad = mesh.num_particles, padded_size(mesh.num_particles)
     if interpret is None:
         interpret = jax.default_backend() != "gpu"
     radius = jnp.asarray(radius, jnp.float32)
     cell, order, start, count = collision.sorted_cells(x, radius)
+    # the busiest first, the padding last (a stable sort: the same deal every time)
+    busy = jnp.pad(candidate_counts(cell, x, radius, count), (0, n_pad - n), constant_values=-1)
+    deal = jnp.argsort(-busy, stable=True).astype(jnp.int32)
 
     def rows(a):
         return jnp.concatenate([jnp.pad(a[:, c], (0, n_pad - n)) for c in range(a.shape[1])])
 
-    out, *_, overflow = _list_call(mesh, int(max_neighbours), int(slots), bool(interpret), num_warps)(
-        jnp.pad(radius[None], (0, 15)), jnp.asarray(np.pad(collision.OFFSETS.ravel(), (0, 128 - 81))),
-        rows(x), rows(x[order]), rows(cell), jnp.pad(order, (0, n_pad - n)),
-        jnp.pad(collision.cell_key(collision.components(cell))[order], (0, n_pad - n)), start, count)
+    walk, listing = _list_calls(mesh, int(max_neighbours), int(slots), bool(interpret), num_warps)
+    radius_row = jnp.pad(radius[None], (0, 15))
+    x_rows, xs_rows = rows(x), rows(x[order])
+    sorted_order = jnp.pad(order, (0, n_pad - n))
+    sorted_key = jnp.pad(collision.cell_key(collision.components(cell))[order], (0, n_pad - n))
+    tables = walk(radius_row, jnp.asarray(np.pad(collision.OFFSETS.ravel(), (0, 128 - 81))), deal, x_rows, xs_rows,
+                  rows(cell), sorted_order, sorted_key, start, count)
+    out, overflow = listing(radius_row, deal, x_rows, xs_rows, sorted_order, sorted_key, *tables)
     neighbours = out.reshape(max_neighbours, n_pad)[:, :n].T
     return neighbours, jnp.sum(overflow)
 

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jarena.arenas.cloth import fused
+from jarena.arenas.cloth import collision, fused
 from jarena.arenas.cloth.mesh import ClothMesh
 from jarena.arenas.cloth.physics import ClothPhysics, _constraint_pairs, neighbours_xla
 
@@ -100,6 +100,26 @@ def test_the_kernel_lists_the_pairs_the_jax_numpy_list_does(size, kept):
     d = np.linalg.norm(np.asarray(x)[:, None] - np.asarray(x)[None], axis=-1)
     assert all(d[i, q] < 0.016 for i, q in listed)
     assert (int(overflow) > 0) == (size < 0.03)
+
+
+def test_which_walk_program_a_particle_is_dealt_to_changes_nothing_in_the_list(monkeypatch):
+    # the walk's programs are dealt particles busiest first; dealt quietest first, in programs of 32, the list is
+    # the same (each particle's candidates are walked in the same order whichever program walks them). A loose
+    # heap: no particle has more candidates within the radius than the walk keeps, so the listing reads those
+    mesh = ClothMesh(rows=10, cols=12, spacing=0.01)
+    x = jnp.asarray(np.random.default_rng(2).uniform(0, 0.05, (mesh.num_particles, 3)).astype(np.float32))
+    radius = jnp.float32(0.016)
+    cell, _, _, count = collision.sorted_cells(x, radius)
+    busy = fused.candidate_counts(cell, x, radius, count)
+    assert int(busy.max()) > 2 * int(busy.min())  # a deal that matters: the particles' walks differ in length
+    monkeypatch.setattr(fused, "LIST_BLOCK", 32)
+    monkeypatch.setattr(fused, "candidate_counts", lambda *args: -busy)
+    fused._list_calls.cache_clear()
+    try:
+        found, _ = jax.jit(lambda x: fused.neighbour_list(mesh, x, radius))(x)
+    finally:
+        fused._list_calls.cache_clear()
+    np.testing.assert_array_equal(np.asarray(found), np.asarray(neighbours_xla(mesh, x, radius)[0]))
 
 
 def test_the_kernel_lists_pairs_just_within_the_radius_across_a_cell_corner():
