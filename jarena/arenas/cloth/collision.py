@@ -201,6 +201,51 @@ def neighbour_list(x: jax.Array, radius: jax.Array, excluded, *, candidates: int
     return chosen, overflow
 
 
+def neighbour_list_pairwise(x: jax.Array, radius: jax.Array, excluded, *, candidates: int = 192,
+                            max_neighbours: int = 16) -> tuple[jax.Array, jax.Array]:
+    """:func:`neighbour_list`'s result (the same pairs in the same order, the same ``overflow``), found by testing
+    every particle pair instead of reading ``candidates`` slots per particle: cheaper for small cloths on a CPU
+    (N^2 pairs against N x ``candidates`` slots and their 27 cell ranges; 10 x 10 cloths: 4x faster, 16 x 16:
+    1.6x, 24 x 24: 2x slower), where XLA's gathers cost far more than arithmetic.
+
+    The slot :func:`neighbour_list` reads particle ``j`` in for particle ``i`` is computed instead of read: ``j``
+    is read in the one of ``i``'s 27 cells whose key equals its own (at most one: keys agree to 10 bits per
+    axis), at that cell's first slot plus ``j``'s place in its bucket's run of the sorted order. Pairs beyond
+    ``candidates`` slots are dropped, the first ``max_neighbours`` listed ones kept in slot order, as there.
+    Needs ``max_neighbours <= min(N, candidates)``.
+    """
+    n = x.shape[0]
+    cell, order, start, count = sorted_cells(x, radius)
+    buckets = start.shape[0]
+    block = cell[:, None, :] + jnp.asarray(OFFSETS)[None]  # (N, 27, 3)
+    sizes = count[cell_hash(components(block), buckets)]  # (N, 27)
+    ends = jnp.cumsum(sizes, axis=1)
+    me = jnp.arange(n, dtype=jnp.int32)
+    # each particle's place in its bucket's run of the sorted order
+    within = jnp.zeros((n,), jnp.int32).at[order].set(me) - start[cell_hash(components(cell), buckets)]
+    # (i, j): which of i's 27 cells (OFFSETS' order) has j's key, if any
+    step = [(cj[None, :] - ci[:, None] + 1) & 1023 for ci, cj in zip(components(cell), components(cell),
+                                                                     strict=True)]
+    read = (step[0] <= 2) & (step[1] <= 2) & (step[2] <= 2)
+    which = jnp.minimum(step[0] * 9 + step[1] * 3 + step[2], 26)
+    slot = (ends - sizes).reshape(-1)[me[:, None] * 27 + which] + within[None, :]  # (N, N)
+    i, j = jnp.broadcast_to(me[:, None], (n, n)), jnp.broadcast_to(me[None, :], (n, n))
+    valid = read & (slot < candidates) & (j != i) & ~excluded(i, j)
+    d2 = None
+    for c in components(x):  # as neighbour_list: candidate minus particle, the components' squares in order
+        d = c[None, :] - c[:, None]
+        d2 = d * d if d2 is None else d2 + d * d
+    r2 = radius * radius
+    valid &= d2 < r2
+    reach = reach_of([jnp.sum(valid & (d2 < r2 * f), axis=1) for f in REACH], r2, max_neighbours)
+    listed = valid & (d2 < jnp.minimum(reach[:, None], reach[None, :]))
+    best, pick = jax.lax.top_k(jnp.where(listed, -slot.astype(jnp.float32), -jnp.inf), max_neighbours)
+    chosen = mutual(jnp.where(jnp.isfinite(best), pick.astype(jnp.int32), -1))
+    overflow = jnp.sum(jnp.maximum(ends[:, -1] - candidates, 0)) + jnp.sum(
+        jnp.maximum(jnp.sum(listed, axis=1) - max_neighbours, 0))
+    return chosen, overflow
+
+
 def mutual(neighbours: jax.Array) -> jax.Array:
     """``neighbours`` (N, M) without the pairs that only one of their particles lists (set to -1)."""
     me = jnp.arange(neighbours.shape[0], dtype=jnp.int32)[:, None, None]

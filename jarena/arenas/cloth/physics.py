@@ -330,6 +330,11 @@ def substeps_xla(mesh: ClothMesh, substeps: int, x: Vec, v: Vec, inv_mass, holde
     return jax.lax.fori_loop(0, substeps, substep, (tuple(x), tuple(v)))
 
 
+PAIRWISE_PARTICLES = 384
+"""Cloths of at most this many particles find their close pairs by :func:`.collision.neighbour_list_pairwise`
+(the same list, faster for small cloths on a CPU), larger ones by :func:`.collision.neighbour_list`."""
+
+
 def neighbours_xla(mesh: ClothMesh, x: jax.Array, radius: jax.Array) -> tuple[jax.Array, jax.Array]:
     """:func:`.collision.neighbour_list` of a cloth's positions ``x`` (N, 3), grid neighbours excluded."""
     cols = mesh.cols
@@ -337,7 +342,8 @@ def neighbours_xla(mesh: ClothMesh, x: jax.Array, radius: jax.Array) -> tuple[ja
     def adjacent(i, j):
         return (jnp.abs(i // cols - j // cols) <= 1) & (jnp.abs(i % cols - j % cols) <= 1)
 
-    return collision.neighbour_list(x, radius, adjacent)
+    small = 16 <= mesh.num_particles <= PAIRWISE_PARTICLES  # 16: the list's entries per particle
+    return (collision.neighbour_list_pairwise if small else collision.neighbour_list)(x, radius, adjacent)
 
 
 @dataclasses.dataclass(frozen=True)

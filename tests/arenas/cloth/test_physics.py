@@ -182,6 +182,27 @@ def test_the_neighbour_list_counts_the_particles_it_could_not_read():
     assert int(overflow) == 20 * (20 - 16)  # each of the 20 misses 4
 
 
+def test_the_pairwise_search_lists_the_same_pairs_in_the_same_order_and_the_same_overflow():
+    # the jax.numpy solver's list for small cloths: equal to neighbour_list's, in the slots' order (the pushes
+    # are summed in it), also where the candidate slots run out or a particle keeps only its nearest pairs
+    rng = np.random.default_rng(2)
+    adjacent = lambda i, j: (jnp.abs(i // 10 - j // 10) <= 1) & (jnp.abs(i % 10 - j % 10) <= 1)  # noqa: E731
+    piles = rng.uniform(-0.2, 0.2, (3, 3))[rng.integers(0, 3, 200)] + rng.normal(0, 0.01, (200, 3))
+    spread = rng.uniform(-0.3, 0.3, (200, 3)) * np.array([1, 1, 0.1])
+    overflows = []
+    for x, radius, candidates, kept in [(piles, 0.02, 48, 16), (piles, 0.03, 192, 4), (spread, 0.05, 16, 16),
+                                        (spread, 0.06, 192, 16)]:
+        x = jnp.asarray(x, jnp.float32)
+        search = jax.jit(lambda x, f: f(x, jnp.float32(radius), adjacent, candidates=candidates,
+                                        max_neighbours=kept), static_argnums=1)
+        (expect, overflow), (found, counted) = search(x, collision.neighbour_list), search(
+            x, collision.neighbour_list_pairwise)
+        np.testing.assert_array_equal(np.asarray(found), np.asarray(expect))
+        assert int(counted) == int(overflow)
+        overflows.append(int(overflow))
+    assert all(overflows[:3]) and (np.asarray(expect) >= 0).sum() > 200, overflows
+
+
 def test_self_collision_pushes_are_equal_and_opposite():
     # a particle pressed into a layer of six: the correction moves the pile's centre of mass by nothing,
     # however many contacts a particle has (an unequal push would make a resting pile crawl)
