@@ -259,9 +259,10 @@ busiest first, so that a program walks as often as its own busiest particle has 
 
 
 def _cells_of(offsets_ref, radius, cell, x, inside, buckets, count_at):
-    """For each of the 27 cells around each particle, in the order read: ``(block, bucket, within)`` (within: the
-    cell's box lies within the radius of the particle, with a margin over the rounding of the cells: a cell
-    farther holds no pair of it). ``count_at(bucket, within)``: the particles in the bucket (0 where not within)."""
+    """For each of the 27 cells around each particle, in the order read, yields ``(block, bucket, within, count)``:
+    the cell's coordinates and hash bucket; whether its box lies within the radius of the particle, with a margin
+    over the rounding of the cells (a cell farther holds no pair of it); and ``count_at(bucket, within)``, the
+    particles in the bucket (0 where not within). Unrolled: 27 copies in a kernel."""
     r2 = radius * radius
     for o in range(27):
         offset = [offsets_ref[3 * o + a] for a in range(3)]
