@@ -188,16 +188,24 @@ def neighbour_list(x: jax.Array, radius: jax.Array, excluded, *, candidates: int
     for c in components(x):
         d = c[order][index] - c[:, None]
         d2 = d * d if d2 is None else d2 + d * d
-    r2 = radius * radius
+    return _list_within_reach(valid, d2, radius * radius, slot[None], candidate, lambda reach: reach[order][index],
+                              jnp.sum(jnp.maximum(ends[:, -1] - candidates, 0)), max_neighbours)
+
+
+def _list_within_reach(valid, d2, r2, slot, candidate, reach_of_candidate, unread, max_neighbours):
+    """The end of both searches: of the candidates read (``valid``, squared distances ``d2``, both (N, C); ``slot``:
+    the order read, broadcasting to them; ``candidate``: their particles), the first ``max_neighbours`` in the order
+    read closer than both particles' reach (``reach_of_candidate(reach)``: the candidates' reach, (N, C)), unlisted
+    where one particle only lists them. Returns them and the overflow: ``unread`` (candidates past the slots) plus
+    the listed pairs past ``max_neighbours``."""
     valid &= d2 < r2
     reach = reach_of([jnp.sum(valid & (d2 < r2 * f), axis=1) for f in REACH], r2, max_neighbours)
-    listed = valid & (d2 < jnp.minimum(reach[:, None], reach[order][index]))
-    order_read = jnp.where(listed, -slot[None].astype(jnp.float32), -jnp.inf)  # the first listed, in order read
+    listed = valid & (d2 < jnp.minimum(reach[:, None], reach_of_candidate(reach)))
+    order_read = jnp.where(listed, -slot.astype(jnp.float32), -jnp.inf)  # the first listed, in order read
     best, pick = jax.lax.top_k(order_read, max_neighbours)
     chosen = jnp.where(jnp.isfinite(best), jnp.take_along_axis(candidate, pick, axis=1), -1)
     chosen = mutual(chosen)  # where slots ran out (overflow), a pair may be listed by one particle only
-    overflow = jnp.sum(jnp.maximum(ends[:, -1] - candidates, 0)) + jnp.sum(
-        jnp.maximum(jnp.sum(listed, axis=1) - max_neighbours, 0))
+    overflow = unread + jnp.sum(jnp.maximum(jnp.sum(listed, axis=1) - max_neighbours, 0))
     return chosen, overflow
 
 
@@ -235,15 +243,8 @@ def neighbour_list_pairwise(x: jax.Array, radius: jax.Array, excluded, *, candid
     for c in components(x):  # as neighbour_list: candidate minus particle, the components' squares in order
         d = c[None, :] - c[:, None]
         d2 = d * d if d2 is None else d2 + d * d
-    r2 = radius * radius
-    valid &= d2 < r2
-    reach = reach_of([jnp.sum(valid & (d2 < r2 * f), axis=1) for f in REACH], r2, max_neighbours)
-    listed = valid & (d2 < jnp.minimum(reach[:, None], reach[None, :]))
-    best, pick = jax.lax.top_k(jnp.where(listed, -slot.astype(jnp.float32), -jnp.inf), max_neighbours)
-    chosen = mutual(jnp.where(jnp.isfinite(best), pick.astype(jnp.int32), -1))
-    overflow = jnp.sum(jnp.maximum(ends[:, -1] - candidates, 0)) + jnp.sum(
-        jnp.maximum(jnp.sum(listed, axis=1) - max_neighbours, 0))
-    return chosen, overflow
+    return _list_within_reach(valid, d2, radius * radius, slot, j, lambda reach: reach[None, :],
+                              jnp.sum(jnp.maximum(ends[:, -1] - candidates, 0)), max_neighbours)
 
 
 def mutual(neighbours: jax.Array) -> jax.Array:

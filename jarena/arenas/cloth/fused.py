@@ -316,11 +316,6 @@ def _walk(tables, refs, column, i, j, x, total, r2, n, n_pad, cols, visit, carry
     return jax.lax.fori_loop(0, jnp.max(total), candidate, state)[-1]
 
 
-def _count_within(counts, q, d2, valid, r2):
-    return tuple(c + (valid & (d2 < r2 * f)).astype(jnp.int32) for c, f in zip(counts, collision.REACH,
-                                                                               strict=True))
-
-
 def _from_kept(found_s, d2_s, column, found, n_pad, visit, carry):
     """``visit(carry, q, d2, valid)`` for the candidates within the radius the walk kept, in the order read."""
     def one(k, carry):
@@ -374,7 +369,8 @@ def _walk_kernel(radius_ref, offsets_ref, deal_ref, x_ref, xs_ref, cell_ref, ord
     counts = tuple(zeros for _ in collision.REACH)
 
     def count_within(counts, q, d2, valid):
-        return _count_within(counts, q, d2, valid, r2)
+        return tuple(c + (valid & (d2 < r2 * f)).astype(jnp.int32) for c, f in zip(counts, collision.REACH,
+                                                                                   strict=True))
 
     counts = jax.lax.cond(jnp.max(found) <= slots,
                           lambda: _from_kept(found_s, d2_s, here, found, n_pad, count_within, counts),
