@@ -21,7 +21,6 @@ import jax
 import jax.numpy as jnp
 
 from jarena.core.arena import Arena
-from jarena.core.batching import batch_reset
 from jarena.core.types import Info
 
 PyTree = Any
@@ -99,9 +98,12 @@ def check_agent_fits(agent: Agent, arena: Arena) -> None:
 
     - the arena's dynamics must be one of ``agent.made_for``, when the agent declares any (the family:
       the trace below cannot tell, as JAX clamps out-of-range indices instead of failing);
-    - one abstract step on a batch of one arena -- ``reset``, ``init``, ``act`` (with the privileged
-      state if the agent asks for it), ``step`` with that action and ``update`` -- must trace under
-      ``jax.eval_shape`` (shapes only: nothing is compiled or run).
+    - one abstract step on a batch of one arena must trace under ``jax.eval_shape`` (shapes only: nothing is
+      compiled or run): ``init``, ``act`` on the reset's info (with the privileged state if the agent asks
+      for it), its action checked against the action spec (``Spec.validate``, what ``step`` does first), and
+      ``update`` with an info of the reset's shapes (the runners' loops carry one info through resets and
+      steps, so a step's info has the same). Neither ``reset`` nor ``step`` is traced again for this: the
+      reset's shapes are ``arena.reset_shapes`` (traced once per arena, for the spec too).
     """
     if agent.made_for and arena.dynamics.name not in agent.made_for:
         made_for = " or ".join(map(repr, agent.made_for))
@@ -110,18 +112,19 @@ def check_agent_fits(agent: Agent, arena: Arena) -> None:
                                                          f"{arena.dynamics.name!r}"))
     spec = arena.spec
     try:
-        jax.eval_shape(lambda: _one_step(agent, arena, spec))
+        one = jax.tree_util.tree_map(lambda x: jax.ShapeDtypeStruct((1,) + x.shape, x.dtype), arena.reset_shapes)
+        jax.eval_shape(lambda state, info: _one_step(agent, arena, spec, state, info), *one)
     except Exception as e:  # any failure of the agent's functions on this arena is the mismatch
         raise AgentArenaMismatch(_mismatch(agent, arena, f"{type(e).__name__}: {e}")) from e
 
 
-def _one_step(agent: Agent, arena: Arena, spec: Any) -> PyTree:
-    """One runner step on a batch of one arena: what :func:`check_agent_fits` traces."""
-    state, info = batch_reset(arena, jax.random.key(0), 1)
+def _one_step(agent: Agent, arena: Arena, spec: Any, state: PyTree, info: Info) -> PyTree:
+    """One runner step on a batch of one arena from its reset ``state`` and ``info`` (leading axis 1): what
+    :func:`check_agent_fits` traces."""
     agent_state = agent.init(jax.random.key(1), spec, 1)
     privileged = arena.privileged(state) if agent.privileged else None
     action, agent_state = agent.act(agent_state, info, jax.random.key(2), privileged)
-    state, info = jax.vmap(arena.step)(state, action)
+    jax.vmap(lambda a: arena.action_spec.validate(a, "action"))(action)
     return agent.update(agent_state, info, action)
 
 

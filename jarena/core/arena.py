@@ -115,22 +115,24 @@ class Arena:
         return self.tool.spec(self.dynamics.control_spec)
 
     @functools.cached_property
-    def _reset_info_shape(self):
-        """Shapes and dtypes of the reset's info, traced once for the observation spec and the goal size (an
-        MJX arena's reset takes seconds to trace)."""
-        _, info = jax.eval_shape(lambda: self.reset(jax.random.key(0)))
-        return info
+    def reset_shapes(self) -> tuple[ArenaState, Info]:
+        """``(state, info)`` of one arena's ``reset`` with the default params, as ``jax.ShapeDtypeStruct`` leaves.
+
+        Traced once (an MJX arena's reset takes seconds to trace) and shared by the observation spec, the goal
+        size, the runners' fit check (:func:`jarena.core.agent.check_agent_fits`) and planners' arena models.
+        """
+        return jax.eval_shape(lambda: self.reset(jax.random.key(0)))
 
     @functools.cached_property
     def observation_spec(self) -> Spec:
         """Spec of ``info.observation``."""
         if self.sensor.spec is not None:
             return self.sensor.spec
-        return spec_from_value(self._reset_info_shape.observation)
+        return spec_from_value(self.reset_shapes[1].observation)
 
     @functools.cached_property
     def goal_dim(self) -> int:
-        return int(self._reset_info_shape.goal.shape[0])
+        return int(self.reset_shapes[1].goal.shape[0])
 
     @property
     def spec(self) -> ArenaSpec:

@@ -82,12 +82,13 @@ def arena_model(arena: Arena, params: ArenaParams | None = None) -> Model:
         raise ValueError("its simulator runs on the host (a host arena), whose states cannot be copied or rolled "
                          "forward; plan over a learned model instead (planet)")
     check_action_spec(arena.action_spec, name)
+    state_shape = jax.eval_shape(arena.privileged, arena.reset_shapes[0] if params is None else
+                                 jax.eval_shape(lambda: arena.reset(jax.random.key(0), params)[0]))
     params = arena.default_params() if params is None else params
 
     def step(state, action):
         state, info = arena.step(state, action, params)
         return state, info.reward, info.done
 
-    state_shape = jax.eval_shape(lambda: arena.privileged(arena.reset(jax.random.key(0), params)[0]))
     no_op = np.asarray(jax.device_get(arena.no_op()), np.float32)
     return Model(step=step, action_spec=arena.action_spec, no_op=no_op, state_shape=state_shape, name=name)
