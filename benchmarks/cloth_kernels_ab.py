@@ -35,7 +35,7 @@ try:
 except ImportError:  # run from a checkout without installing: put the repository root on the path
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     import jarena
-from jarena.arenas.cloth import physics  # noqa: E402
+from jarena.arenas.cloth import collision, physics  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import cloth_throughput  # noqa: E402
@@ -47,12 +47,22 @@ NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 
 
 def load_kernels(name: str, path: str) -> physics.Solver:
-    """The module at ``path`` (a version of ``fused.py``) as a cloth solver, registered as ``name``."""
+    """The module at ``path`` (a version of ``fused.py``) as a cloth solver, registered as ``name``.
+
+    Versions before ``neighbour_rows`` took the list as (N, M) and each pair's share from the caller: they get both."""
     spec = importlib.util.spec_from_file_location(f"cloth_kernels_{name}", path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # its dataclasses look their module up
     spec.loader.exec_module(module)
-    solver = physics.Solver(module.neighbour_list, module.run_substeps)
+    if hasattr(module, "neighbour_rows"):
+        solver = physics.Solver(module.neighbour_rows, module.run_substeps)
+    else:
+        def substeps(mesh, count, x, v, inv_mass, *rest):
+            *rest, neighbours, scalars = rest
+            return module.run_substeps(mesh, count, x, v, inv_mass, *rest, neighbours,
+                                       collision.pair_shares(inv_mass, neighbours), scalars)
+
+        solver = physics.Solver(module.neighbour_list, substeps)
     physics.SOLVERS[name] = solver
     return solver
 

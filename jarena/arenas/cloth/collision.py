@@ -257,7 +257,11 @@ def mutual(neighbours: jax.Array) -> jax.Array:
 def pair_shares(inv_mass: jax.Array, neighbours: jax.Array) -> jax.Array:
     """float32 (N, M): the share ``w_i / (w_i + w_j)`` of each listed pair's correction that :func:`separate`
     moves particle ``i`` (``w``: ``inv_mass``; 0 if both are held fixed). Constant over a control step."""
-    wi, wj = inv_mass[:, None], inv_mass[jnp.maximum(neighbours, 0)]
+    return pair_share(inv_mass[:, None], inv_mass[jnp.maximum(neighbours, 0)])
+
+
+def pair_share(wi: jax.Array, wj: jax.Array) -> jax.Array:
+    """:func:`pair_shares` of particles of inverse masses ``wi`` and ``wj`` (broadcasting float32 arrays)."""
     return jnp.where(wi + wj > 0, wi / jnp.maximum(wi + wj, 1e-12), 0.0)
 
 

@@ -465,7 +465,7 @@ def _list_calls(mesh: ClothMesh, max_neighbours: int, slots: int, interpret: boo
     return walk, listing
 
 
-def neighbour_list(mesh: ClothMesh, x: jax.Array, radius: jax.Array, *, max_neighbours: int = 16, slots: int = 64,
+def neighbour_rows(mesh: ClothMesh, x: jax.Array, radius: jax.Array, *, max_neighbours: int = 16, slots: int = 64,
                    interpret: bool | None = None, num_warps: int | None = None) -> tuple[jax.Array, jax.Array]:
     """:func:`.collision.neighbour_list` of one cloth's positions ``x`` (N, 3), grid neighbours excluded, as two
     kernels: the same pairs in the same order wherever the jax.numpy list's ``candidates`` slots suffice (these
@@ -479,7 +479,8 @@ def neighbour_list(mesh: ClothMesh, x: jax.Array, radius: jax.Array, *, max_neig
     from its walk for the listing (if one has more, its programs walk again: slower, same result). The scratch
     arrays take (max_neighbours + 2 x slots + 85) x 4 bytes per padded particle. ``num_warps``: of the listing (default
     :func:`default_warps`; the walk's programs take one warp per 64 particles). Returns int32
-    (N, max_neighbours) and the int32 overflow (listed pairs past a particle's slots)."""
+    ``(max_neighbours x padded_size(N),)``, the list as the substeps kernel reads it (row ``k``: each particle's
+    ``k``-th pair, -1 for none and for the padding), and the int32 overflow (listed pairs past a particle's slots)."""
     n, n_pad = mesh.num_particles, padded_size(mesh.num_particles)
     if interpret is None:
         interpret = jax.default_backend() != "gpu"
@@ -500,8 +501,15 @@ def neighbour_list(mesh: ClothMesh, x: jax.Array, radius: jax.Array, *, max_neig
     tables = walk(radius_row, jnp.asarray(np.pad(collision.OFFSETS.ravel(), (0, 128 - 81))), deal, x_rows, xs_rows,
                   rows(cell), sorted_order, sorted_key, start, count)
     out, overflow = listing(radius_row, deal, x_rows, xs_rows, sorted_order, sorted_key, *tables)
-    neighbours = out.reshape(max_neighbours, n_pad)[:, :n].T
-    return neighbours, jnp.sum(overflow)
+    return out, jnp.sum(overflow)
+
+
+def neighbour_list(mesh: ClothMesh, x: jax.Array, radius: jax.Array, *, max_neighbours: int = 16,
+                   **kwargs) -> tuple[jax.Array, jax.Array]:
+    """:func:`neighbour_rows` as :func:`.collision.neighbour_list` gives it: int32 (N, max_neighbours) and the
+    overflow (keywords as :func:`neighbour_rows`)."""
+    rows, overflow = neighbour_rows(mesh, x, radius, max_neighbours=max_neighbours, **kwargs)
+    return rows.reshape(max_neighbours, -1)[:, :mesh.num_particles].T, overflow
 
 
 def _backend(interpret: bool, num_warps: int | None, n_pad: int):
@@ -527,7 +535,7 @@ def _call(mesh: ClothMesh, substeps: int, num_pickers: int, max_neighbours: int,
 
 
 def run_substeps(mesh: ClothMesh, substeps: int, x, v, inv_mass, holder, offset, start, end, tether_to,
-                 tether_length, neighbours, share, scalars, *, interpret: bool | None = None,
+                 tether_length, neighbours, scalars, *, interpret: bool | None = None,
                  num_warps: int | None = None):
     """The substeps of one control step of one cloth (see :meth:`.physics.ClothPhysics.step`), fused.
 
@@ -538,7 +546,8 @@ def run_substeps(mesh: ClothMesh, substeps: int, x, v, inv_mass, holder, offset,
         (-1: none); offset: three float32 (N,), held particle minus picker.
       start, end: float32 (K, 3), the pickers' positions at the step's start and end.
       tether_to: int32 (N, K) (-1: none); tether_length: float32 (N, K), metres.
-      neighbours: int32 (N, M) (-1: none); share: float32 (N, M) (see :mod:`.collision`).
+      neighbours: int32 (M x padded_size(N),) from :func:`neighbour_rows` (row ``k``: each particle's ``k``-th
+        pair, -1: none). Each pair's share of its push (:func:`.collision.pair_shares`) is computed here.
       scalars: float32 (len(SCALARS),) in the order of :data:`SCALARS`.
       interpret: run in Pallas' interpreter (default: on any backend but a GPU).
       num_warps: per program (default :func:`default_warps`).
@@ -547,7 +556,7 @@ def run_substeps(mesh: ClothMesh, substeps: int, x, v, inv_mass, holder, offset,
       positions and velocities, three float32 (N,) arrays each.
     """
     n, n_pad = mesh.num_particles, padded_size(mesh.num_particles)
-    k, m = start.shape[0], neighbours.shape[1]
+    k, m = start.shape[0], neighbours.shape[0] // n_pad
     if interpret is None:
         interpret = jax.default_backend() != "gpu"
 
@@ -563,9 +572,11 @@ def run_substeps(mesh: ClothMesh, substeps: int, x, v, inv_mass, holder, offset,
     scal = jnp.pad(scal, (0, padded_size(scal.shape[0]) - scal.shape[0]))
     xv = jnp.concatenate([pad(c) for c in (*x, *v)])
     colours = jnp.asarray(np.pad(COLOURS.ravel(), (0, padded_size(COLOURS.size) - COLOURS.size)))
+    w = pad(inv_mass)
+    share = collision.pair_share(w, w[jnp.maximum(neighbours, 0).reshape(m, n_pad)]).ravel()  # as the list
     out = _call(mesh, int(substeps), int(k), int(m), bool(interpret), num_warps)(
-        scal, colours, jnp.asarray(colour_roles(mesh)), xv, pad(inv_mass), pad(holder, -1),
+        scal, colours, jnp.asarray(colour_roles(mesh)), xv, w, pad(holder, -1),
         jnp.concatenate([pad(c) for c in offset]),
-        rows(tether_to, -1), rows(tether_length), rows(neighbours, -1), rows(share))[0]
+        rows(tether_to, -1), rows(tether_length), neighbours, share)[0]
     parts = tuple(out[a * n_pad:a * n_pad + n] for a in range(6))
     return parts[:3], parts[3:]

@@ -215,21 +215,14 @@ class ClothPhysics:
         h = self.dt / self.substeps
         solver = SOLVERS[self.resolve_solver()]
         neighbours, overflow = solver.neighbours(self.mesh, state.positions, 2.0 * params.self_collision_distance)
-        share = collision.pair_shares(inv_mass, neighbours)
-        # tethers: each free particle to the nearest (on the flat cloth) particle each picker holds
-        rest = self._rest_distance(jnp.arange(n)[:, None, None], jnp.maximum(held, 0)[None])  # (N, K, G)
-        rest = jnp.where(held[None] >= 0, rest, jnp.inf)
-        nearest = jnp.argmin(rest, axis=-1)  # (N, K)
-        tether_to = jnp.where(jnp.isfinite(jnp.min(rest, axis=-1)),
-                              jnp.take_along_axis(held[None].repeat(n, 0), nearest[..., None], -1)[..., 0], -1)
-        tether_length = jnp.min(rest, axis=-1)
+        tether_to, tether_length = self._tethers(held)
         scalars = jnp.stack([jnp.asarray(s, jnp.float32) for s in (
             params.stretch_compliance / (h * h), params.shear_compliance / (h * h), params.bend_compliance / (h * h),
             jnp.exp(-params.damping * h), -params.gravity * h, jnp.float32(h), params.particle_radius,
             params.friction, params.self_collision_distance, params.self_friction)])
         x, v = solver.substeps(
             self.mesh, self.substeps, collision.components(state.positions), collision.components(state.velocities),
-            inv_mass, holder, offset, start, end, tether_to, tether_length, neighbours, share, scalars)
+            inv_mass, holder, offset, start, end, tether_to, tether_length, neighbours, scalars)
         return ClothState(positions=jnp.stack(x, axis=-1), velocities=jnp.stack(v, axis=-1), picker_positions=end,
                           picker_closed=closed, held=held, held_offsets=offsets, collision_overflow=overflow,
                           mesh=self.mesh)
@@ -265,12 +258,25 @@ class ClothPhysics:
             taken = taken.at[_scatter_index(idx, n)].set(True, mode="drop")
         return held, offsets
 
-    def _rest_distance(self, i: jax.Array, j: jax.Array) -> jax.Array:
-        """Distance of particles ``i`` and ``j`` on the flat cloth, metres (broadcasting int arrays)."""
-        cols = self.mesh.cols
-        di, dj = (i // cols - j // cols).astype(jnp.float32), (i % cols - j % cols).astype(jnp.float32)
-        return jnp.sqrt(di * di + dj * dj) * self.mesh.spacing
+    def _tethers(self, held: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """Each particle's tether to each picker: int32 (N, K), the held particle nearest to it on the flat cloth
+        (the first of equals in ``held``'s order; -1 where the picker holds none), and float32 (N, K) their
+        distance on the flat cloth, metres (inf where none).
 
+        Nearest by squared grid distance, an integer: its square root's order is the same (square roots of distinct
+        integers below 2^24 round apart), and ``d2 x G + slot`` makes the search one integer minimum, which XLA
+        reduces faster than an argmin."""
+        n, g = self.mesh.num_particles, held.shape[1]
+        cols = self.mesh.cols
+        p, q = jnp.arange(n, dtype=jnp.int32)[:, None, None], jnp.maximum(held, 0)[None]  # (N, 1, 1), (1, K, G)
+        di, dj = p // cols - q // cols, p % cols - q % cols
+        slot = jnp.arange(g, dtype=jnp.int32)
+        none = jnp.iinfo(jnp.int32).max
+        nearest = jnp.min(jnp.where(held[None] >= 0, (di * di + dj * dj) * g + slot, none), axis=-1)  # (N, K)
+        found = nearest < none
+        to = jnp.take_along_axis(held[None], jnp.where(found, nearest % g, 0)[..., None], axis=-1)[..., 0]
+        d2 = (nearest // g).astype(jnp.float32)
+        return jnp.where(found, to, -1), jnp.where(found, jnp.sqrt(d2) * self.mesh.spacing, jnp.inf)
 
 
 def _tether(x: Vec, inv_mass: jax.Array, to: jax.Array, length: jax.Array) -> Vec:
@@ -305,8 +311,10 @@ def _floor(x: Vec, x_prev: Vec, inv_mass: jax.Array, radius: jax.Array, friction
 
 
 def substeps_xla(mesh: ClothMesh, substeps: int, x: Vec, v: Vec, inv_mass, holder, offset: Vec, start, end,
-                 tether_to, tether_length, neighbours, share, scalars) -> tuple[Vec, Vec]:
-    """The substeps of one control step as jax.numpy (arguments and results as :func:`.fused.run_substeps`)."""
+                 tether_to, tether_length, neighbours, scalars) -> tuple[Vec, Vec]:
+    """The substeps of one control step as jax.numpy (arguments and results as :func:`.fused.run_substeps`, but
+    ``neighbours``: int32 (N, M) from :func:`neighbours_xla`)."""
+    share = collision.pair_shares(inv_mass, neighbours)
     s = dict(zip(fused.SCALARS, scalars, strict=True))
     h = s["h"]
     alphas = {"stretch": s["alpha_stretch"], "shear": s["alpha_shear"], "bend": s["alpha_bend"]}
@@ -348,14 +356,15 @@ def neighbours_xla(mesh: ClothMesh, x: jax.Array, radius: jax.Array) -> tuple[ja
 
 @dataclasses.dataclass(frozen=True)
 class Solver:
-    """How a control step runs: ``neighbours(mesh, x, radius) -> (int32 (N, M), overflow)``, the self-collision
-    pairs; ``substeps(mesh, substeps, x, v, ...) -> (x, v)``, the substeps (arguments as :func:`substeps_xla`)."""
+    """How a control step runs: ``neighbours(mesh, x, radius) -> (pairs, overflow)``, the self-collision pairs
+    (M per particle, int32, laid out as the solver's ``substeps`` reads them: (N, M) for ``xla``); ``substeps(mesh,
+    substeps, x, v, ..., pairs, scalars) -> (x, v)``, the substeps (arguments as :func:`substeps_xla`)."""
 
     neighbours: Callable
     substeps: Callable
 
 
-SOLVERS = {"xla": Solver(neighbours_xla, substeps_xla), "fused": Solver(fused.neighbour_list, fused.run_substeps)}
+SOLVERS = {"xla": Solver(neighbours_xla, substeps_xla), "fused": Solver(fused.neighbour_rows, fused.run_substeps)}
 """How a control step runs: ``xla`` (jax.numpy, any backend) or ``fused`` (Pallas kernels, one program per
 cloth, :mod:`.fused`: the neighbour search and the substeps; on a CPU they run in Pallas' interpreter, for
 tests only). Both compute the same pairs and the same arithmetic in the same order."""

@@ -231,3 +231,21 @@ def test_a_crumpled_cloth_left_alone_comes_to_rest_where_it_lies():
     assert drift.max() < 0.01, drift  # metres in 1 s
     assert speed.max() < 0.05, speed  # m/s
     assert np.asarray(later.physics.collision_overflow).max() == 0
+
+
+def test_each_particle_is_tethered_to_the_nearest_held_particle_on_the_flat_cloth_first_of_equals():
+    mesh = ClothMesh(rows=6, cols=7, spacing=0.02)
+    physics = ClothPhysics(mesh, num_pickers=2, max_held=5)
+    # picker 0 holds two particles equally far from many others (ties go to the first slot) and empty slots;
+    # picker 1 holds none
+    held = jnp.array([[-1, mesh.index(1, 1), -1, mesh.index(1, 5), mesh.index(4, 3)], [-1] * 5], jnp.int32)
+    to, length = physics._tethers(held)
+    rows, cols = np.divmod(np.arange(mesh.num_particles), mesh.cols)
+    for p in range(mesh.num_particles):
+        slots = [g for g in range(5) if held[0, g] >= 0]
+        rest = [np.hypot(rows[p] - rows[held[0, g]], cols[p] - cols[held[0, g]]) * mesh.spacing for g in slots]
+        best = slots[int(np.argmin(rest))]
+        assert int(to[p, 0]) == int(held[0, best])
+        np.testing.assert_allclose(float(length[p, 0]), min(rest), rtol=1e-6)
+    assert (np.asarray(to[:, 1]) == -1).all() and np.isinf(np.asarray(length[:, 1])).all()
+    assert int(to[mesh.index(1, 3), 0]) == int(held[0, 1])  # equally far from (1, 1) and (1, 5): the first slot
