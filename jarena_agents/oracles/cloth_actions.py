@@ -65,6 +65,21 @@ def lookahead_model(agent: str, cfg, arena, without: str):
     return resolve_model(agent, cfg, arena, None)[0]
 
 
+def best_of(states, tried: jax.Array, score) -> jax.Array:
+    """float32 (B, 4 K): for each of B states (pytree leaves with a leading axis B), the action of ``tried``
+    (B, P, 4 K) with the highest ``score(state, action)`` (a float32 scalar; the first of equals).
+
+    The B x P scores run as one batch, each state repeated P times, rather than a vmap over the P actions
+    inside a vmap over the B states: a score that steps the arena (a scan of physics steps, each a loop of
+    substeps) is then traced and batched once, not twice over.
+    """
+    b, p = tried.shape[:2]
+    repeated = jax.tree_util.tree_map(lambda x: jnp.repeat(x, p, axis=0), states)
+    scores = jax.vmap(score)(repeated, tried.reshape((b * p,) + tried.shape[2:])).reshape(b, p)
+    best = jnp.argmax(scores, axis=-1)
+    return jnp.take_along_axis(tried, best[:, None, None], axis=1)[:, 0]
+
+
 def idle(num_pickers: int) -> jax.Array:
     """float32 (4 K,): pick and place at the workspace's empty corner (the cloth only settles)."""
     return -jnp.ones((4 * int(num_pickers),), jnp.float32)

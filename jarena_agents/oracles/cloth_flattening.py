@@ -155,23 +155,23 @@ def make_cloth_flattening_oracle(config=None, arena=None) -> Agent:
     def init(key, spec, num_arenas):
         return SpecState(spec)
 
-    def one(privileged, pickers: int, coordinates: str):
-        physics = privileged.physics
-        positions, mesh = physics.positions, physics.mesh
-        goal = flat_goal(positions, mesh, cfg.reach)
+    def score(privileged, action):
+        mesh = privileged.physics.mesh
+        after = model.step(privileged, action)[0].physics.positions
+        value = coverage_lib.normalised_coverage(after, mesh)
+        return value - cfg.unfold_weight * fit_residual(after, mesh) if cfg.unfold_weight else value
+
+    def choose(privileged, pickers: int, coordinates: str):  # (B, ...) cloths -> float32 (B, 4 K)
+        positions, mesh = privileged.physics.positions, privileged.physics.mesh
+        goal = jax.vmap(lambda x: flat_goal(x, mesh, cfg.reach))(positions)
         if model is None:
-            action = analytic_pull(positions, goal, mesh, pickers, coordinates)
+            action = jax.vmap(lambda x, g: analytic_pull(x, g, mesh, pickers, coordinates))(positions, goal)
         else:
-            tried = proposals(positions, goal, mesh, pickers, coordinates, cfg.outward, cfg.interior, cfg.tips)
-
-            def score(action):
-                after = model.step(privileged, action)[0].physics.positions
-                value = coverage_lib.normalised_coverage(after, mesh)
-                return value - cfg.unfold_weight * fit_residual(after, mesh) if cfg.unfold_weight else value
-
-            action = tried[jnp.argmax(jax.vmap(score)(tried))]  # the first of equals: the analytic pull where it ties
-        done = coverage_lib.normalised_coverage(positions, mesh) >= cfg.stop_coverage
-        return jnp.where(done, cloth_actions.idle(pickers), action)
+            tried = jax.vmap(lambda x, g: proposals(x, g, mesh, pickers, coordinates, cfg.outward, cfg.interior,
+                                                    cfg.tips))(positions, goal)
+            action = cloth_actions.best_of(privileged, tried, score)  # the analytic pull where it ties
+        done = jax.vmap(lambda x: coverage_lib.normalised_coverage(x, mesh))(positions) >= cfg.stop_coverage
+        return jnp.where(done[:, None], cloth_actions.idle(pickers), action)
 
     def act(state, info, key, privileged):
         coordinates = cloth_actions.frame_of(privileged, "oracle_cloth_flattening")
@@ -180,7 +180,7 @@ def make_cloth_flattening_oracle(config=None, arena=None) -> Agent:
         if model is not None:
             model.check_state(privileged, batch_dims=len(batch))
         flat = jax.tree_util.tree_map(lambda x: x.reshape((-1,) + x.shape[len(batch):]), privileged)
-        actions = jax.vmap(lambda p: one(p, pickers, coordinates))(flat)
+        actions = choose(flat, pickers, coordinates)
         return actions.reshape(batch + actions.shape[-1:]), state
 
     return Agent(name="oracle_cloth_flattening", init=init, act=act, privileged=True, made_for=("cloth",),

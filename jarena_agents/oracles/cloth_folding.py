@@ -137,6 +137,7 @@ def make_cloth_folding_oracle(config=None, arena=None) -> Agent:
         return state.replace(folding=state.folding & ~mask)
 
     def one(privileged, goal, folding, pickers: int, coordinates: str):
+        """One cloth's flattening pull, analytic fold (``None`` with lookahead) and whether it flattens."""
         positions, mesh = privileged.physics.positions, privileged.physics.mesh
         handles = jnp.asarray(cloth_actions.handles(mesh))
         on_floor = floor_layer(goal, mesh)[handles]
@@ -144,15 +145,23 @@ def make_cloth_folding_oracle(config=None, arena=None) -> Agent:
         flat_action, flat_error = cloth_actions.pull(positions, handles, flat, on_floor, pickers, mesh.spacing,
                                                      coordinates)
         flatten = ~folding & (flat_error > cfg.flat_tolerance)
+        fold_action = None
         if model is None:
             fold_action, fold_error = cloth_actions.pull(positions, handles, goal[handles, :2], ~on_floor, pickers,
                                                          mesh.spacing, coordinates)
             fold_action = jnp.where(fold_error <= cfg.stop_distance, cloth_actions.idle(pickers), fold_action)
-        else:
-            tried = fold_proposals(positions, goal, mesh, pickers, coordinates, fractions)
-            reward = jax.vmap(lambda a: model.step(privileged, a)[1])(tried)
-            fold_action = tried[jnp.argmax(reward)]  # the first of equals
-        return jnp.where(flatten, flat_action, fold_action), ~flatten
+        return flat_action, fold_action, flatten
+
+    def choose(privileged, goals, folding, pickers: int, coordinates: str):
+        """B cloths (leading axis B) -> float32 (B, 4 K) actions and bool (B,) folding."""
+        flat_action, fold_action, flatten = jax.vmap(lambda p, g, f: one(p, g, f, pickers, coordinates))(
+            privileged, goals, folding)
+        if model is not None:
+            mesh = privileged.physics.mesh
+            tried = jax.vmap(lambda x, g: fold_proposals(x, g, mesh, pickers, coordinates, fractions))(
+                privileged.physics.positions, goals)
+            fold_action = cloth_actions.best_of(privileged, tried, lambda s, a: model.step(s, a)[1])  # first of equals
+        return jnp.where(flatten[:, None], flat_action, fold_action), ~flatten
 
     def act(state, info, key, privileged):
         coordinates = cloth_actions.frame_of(privileged, "oracle_cloth_folding")
@@ -169,7 +178,7 @@ def make_cloth_folding_oracle(config=None, arena=None) -> Agent:
         flat = jax.tree_util.tree_map(lambda x: x.reshape((-1,) + x.shape[len(batch):]), privileged)
         goals = info.goal.reshape((-1, mesh.num_particles, 3))
         folding = state.folding.reshape(-1)
-        actions, folding = jax.vmap(lambda p, g, f: one(p, g, f, pickers, coordinates))(flat, goals, folding)
+        actions, folding = choose(flat, goals, folding, pickers, coordinates)
         return actions.reshape(batch + actions.shape[-1:]), state.replace(folding=folding.reshape(batch))
 
     return Agent(name="oracle_cloth_folding", init=init, act=act, reset=reset, privileged=True, made_for=("cloth",),

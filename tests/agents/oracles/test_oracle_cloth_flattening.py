@@ -15,6 +15,15 @@ def _take(tree, index):
     return jax.tree_util.tree_map(lambda x: x[index], tree)
 
 
+def _after_each(starts, tried, taken, score):
+    """``score(start, action)`` of each of the B cloths' P ``tried`` actions (B, P, A), (B, P), and of its
+    ``taken`` action (B, A), (B,): each step batched once (a vmap over the B x P copies of the starts, not a
+    vmap over the proposals inside a vmap over the cloths, which traces the step's loops twice over)."""
+    repeated = jax.tree_util.tree_map(lambda x: jnp.repeat(x, tried.shape[1], axis=0), starts)
+    scores = jax.vmap(score)(repeated, tried.reshape(-1, tried.shape[-1])).reshape(tried.shape[:2])
+    return scores, jax.vmap(score)(starts, taken)
+
+
 @pytest.fixture(scope="module")
 def nine_crumpled():
     """Nine crumpled 24 x 24 starts of a side-fold arena (the flattening oracle reads only the particles),
@@ -84,16 +93,12 @@ def test_the_lookahead_takes_the_proposal_that_covers_most(crumpled):
         agent_state = oracle.init(jax.random.key(0), arena.spec, info.reward.shape[0])
         taken, _ = oracle.act(agent_state, info, jax.random.key(1), privileged)
         mesh = privileged.physics.mesh
-
-        def one(start, action):
-            def after(a):
-                return coverage.normalised_coverage(model.step(start, a)[0].physics.positions, mesh)
-            positions = start.physics.positions
-            tried = proposals(positions, flat_goal(positions, mesh, 0.15), mesh, 1, "pixel", 0.25, 4, True)
-            covered = jax.vmap(after)(jnp.concatenate([tried, action[None]]))  # one copy of the step compiled
-            return coverage.normalised_coverage(positions, mesh), covered[:-1], covered[-1]
-
-        return jax.vmap(one)(privileged, taken)
+        positions = privileged.physics.positions
+        tried = jax.vmap(lambda x: proposals(x, flat_goal(x, mesh, 0.15), mesh, 1, "pixel", 0.25, 4, True))(positions)
+        return (jax.vmap(lambda x: coverage.normalised_coverage(x, mesh))(positions),
+                *_after_each(privileged, tried, taken,
+                             lambda start, a: coverage.normalised_coverage(model.step(start, a)[0].physics.positions,
+                                                                           mesh)))
 
     now, tried, taken = (np.asarray(x) for x in check(_take(crumpled.info, slice(2)),
                                                       _take(crumpled.privileged, slice(2))))
@@ -159,20 +164,20 @@ def test_interior_proposals_put_inner_particles_at_their_goals_and_the_score_cou
                               jax.random.key(1), privileged)
         mesh = privileged.physics.mesh
 
-        def one(start, action):
-            def score(a):
-                after = model.step(start, a)[0].physics.positions
-                return coverage.normalised_coverage(after, mesh) - 2.0 * fit_residual(after, mesh)
-            positions = start.physics.positions
+        def score(start, a):
+            after = model.step(start, a)[0].physics.positions
+            return coverage.normalised_coverage(after, mesh) - 2.0 * fit_residual(after, mesh)
+
+        def one(positions):
             goal = flat_goal(positions, mesh, 0.15)
             tried = proposals(positions, goal, mesh, 1, "pixel", 0.15, 3, True)  # tips on, as the oracle's default
             inner = jnp.asarray(cloth_actions.interior_handles(mesh, 3))
             expected = jax.vmap(lambda p, q: cloth_actions.encode(p[None], q[None], "pixel"))(
                 positions[inner, :2], goal[inner])
-            scores = jax.vmap(score)(jnp.concatenate([tried, action[None]]))  # one copy of the step compiled
-            return tried, expected, scores[:-1], scores[-1]
+            return tried, expected
 
-        return jax.vmap(one)(privileged, taken)
+        tried, expected = jax.vmap(one)(privileged.physics.positions)
+        return tried, expected, *_after_each(privileged, tried, taken, score)
 
     tried, expected, scores, taken = (np.asarray(x) for x in check(_take(crumpled.info, slice(2)),
                                                                    _take(crumpled.privileged, slice(2))))
