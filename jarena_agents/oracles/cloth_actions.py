@@ -65,9 +65,9 @@ def lookahead_model(agent: str, cfg, arena, without: str):
     return resolve_model(agent, cfg, arena, None)[0]
 
 
-def best_of(states, tried: jax.Array, score) -> jax.Array:
-    """float32 (B, 4 K): for each of B states (pytree leaves with a leading axis B), the action of ``tried``
-    (B, P, 4 K) with the highest ``score(state, action)`` (a float32 scalar; the first of equals).
+def each_score(states, tried: jax.Array, score) -> jax.Array:
+    """float32 (B, P): ``score(state, action)`` (a float32 scalar) of each of B states (pytree leaves with a
+    leading axis B) and each of its P actions ``tried`` (B, P, 4 K).
 
     The B x P scores run as one batch, each state repeated P times, rather than a vmap over the P actions
     inside a vmap over the B states: a score that steps the arena (a scan of physics steps, each a loop of
@@ -75,8 +75,13 @@ def best_of(states, tried: jax.Array, score) -> jax.Array:
     """
     b, p = tried.shape[:2]
     repeated = jax.tree_util.tree_map(lambda x: jnp.repeat(x, p, axis=0), states)
-    scores = jax.vmap(score)(repeated, tried.reshape((b * p,) + tried.shape[2:])).reshape(b, p)
-    best = jnp.argmax(scores, axis=-1)
+    return jax.vmap(score)(repeated, tried.reshape((b * p,) + tried.shape[2:])).reshape(b, p)
+
+
+def best_of(states, tried: jax.Array, score) -> jax.Array:
+    """float32 (B, 4 K): for each of B states, the action of ``tried`` (B, P, 4 K) with the highest
+    :func:`each_score` (the first of equals)."""
+    best = jnp.argmax(each_score(states, tried, score), axis=-1)
     return jnp.take_along_axis(tried, best[:, None, None], axis=1)[:, 0]
 
 

@@ -17,11 +17,10 @@ def _take(tree, index):
 
 def _after_each(starts, tried, taken, score):
     """``score(start, action)`` of each of the B cloths' P ``tried`` actions (B, P, A), (B, P), and of its
-    ``taken`` action (B, A), (B,): each step batched once (a vmap over the B x P copies of the starts, not a
-    vmap over the proposals inside a vmap over the cloths, which traces the step's loops twice over)."""
-    repeated = jax.tree_util.tree_map(lambda x: jnp.repeat(x, tried.shape[1], axis=0), starts)
-    scores = jax.vmap(score)(repeated, tried.reshape(-1, tried.shape[-1])).reshape(tried.shape[:2])
-    return scores, jax.vmap(score)(starts, taken)
+    ``taken`` action (B, A), (B,): each step batched once (:func:`cloth_actions.each_score`)."""
+    from jarena_agents.oracles import cloth_actions
+
+    return cloth_actions.each_score(starts, tried, score), jax.vmap(score)(starts, taken)
 
 
 @pytest.fixture(scope="module")

@@ -93,10 +93,10 @@ def test_the_lookahead_takes_the_fold_that_ends_nearest_the_goal():
         mesh = privileged.physics.mesh
         tried = jax.vmap(lambda x, g: fold_proposals(x, g.reshape(-1, 3), mesh, 1, "pixel", (0.7, 1.0)))(
             privileged.physics.positions, info.goal)
-        # each step batched once (not a vmap over proposals inside a vmap over cloths: twice the tracing)
-        reward = jax.vmap(lambda start, a: model.step(start, a)[1])
-        starts = jax.tree_util.tree_map(lambda x: jnp.repeat(x, tried.shape[1], axis=0), privileged)
-        return reward(starts, tried.reshape(-1, tried.shape[-1])).reshape(tried.shape[:2]), reward(privileged, taken)
+        def reward(start, a):
+            return model.step(start, a)[1]
+
+        return cloth_actions.each_score(privileged, tried, reward), jax.vmap(reward)(privileged, taken)
 
     tried, taken = (np.asarray(x) for x in check(jnp.arange(2)))
     assert tried.shape == (2, 2 + 21 * 2)
