@@ -140,13 +140,20 @@ def coordinates_of(tool_state) -> str | None:
 
 
 def _run(controls: jax.Array, carry, inner):
-    """Runs ``controls`` (T, ...) through ``inner``; the outcome is the last step's."""
+    """Runs ``controls`` (T, ...) through ``inner``; the outcome is the last step's.
+
+    The first T - 1 steps are a scan whose outcomes XLA drops (the task's metrics, such as the coverage
+    raster, run only after the last step), the last step a call after it. ``inner`` (a physics step and the
+    task's update) is traced once, and both places evaluate its jaxpr: the same operations as two traces.
+    """
+    step, hoisted = jax.closure_convert(inner, carry, controls[0])
+
     def body(c, control):
-        c, _ = inner(c, control)
+        c, _ = step(c, control, *hoisted)
         return c, None
 
     carry, _ = jax.lax.scan(body, carry, controls[:-1])
-    return inner(carry, controls[-1])
+    return step(carry, controls[-1], *hoisted)
 
 
 def _pick_place_tool(num_pickers: int, timing: Timing, name: str, to_world, default_params,
