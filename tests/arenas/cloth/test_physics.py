@@ -222,7 +222,7 @@ def test_a_crumpled_cloth_left_alone_comes_to_rest_where_it_lies():
     # a 16-pixel camera: each step renders the observation, which this test of the physics does not read
     arena = jarena.build_arena("cloth|domain:square_fabric,initial:crumpled,particles:24,action:picker,"
                                "eval_episodes:4,resolution:16")
-    states, _ = jax.vmap(lambda e: arena.reset(episode=e))(jnp.asarray(list(arena.episodes("eval"))))
+    states, _ = jax.jit(jax.vmap(lambda e: arena.reset(episode=e)))(jnp.asarray(list(arena.episodes("eval"))))
     still = jnp.zeros((4,) + arena.action_spec.shape)
     later = jax.jit(lambda s: jax.lax.fori_loop(0, 100, lambda _, s: jax.vmap(arena.step)(s, still)[0], s))(states)
     start, end = np.asarray(states.physics.positions), np.asarray(later.physics.positions)
