@@ -48,9 +48,15 @@ def test_the_oracle_folds_a_flat_cloth_closer_than_random():
 
 
 def _first_action(arena, agent):
-    state, info = jax.vmap(lambda e: arena.reset(episode=e))(jnp.arange(2))
-    agent_state = agent.init(jax.random.key(0), arena.spec, 2)
-    action, agent_state = agent.act(agent_state, info, jax.random.key(1), arena.privileged(state))
+    """The agent's first action and state on the arena's first two episodes, as one compiled call (run op by op,
+    the reset and the act dispatch thousands of small programs)."""
+    @jax.jit
+    def first():
+        state, info = jax.vmap(lambda e: arena.reset(episode=e))(jnp.arange(2))
+        agent_state = agent.init(jax.random.key(0), arena.spec, 2)
+        return agent.act(agent_state, info, jax.random.key(1), arena.privileged(state))
+
+    action, agent_state = first()
     return np.asarray(action), agent_state
 
 
