@@ -55,7 +55,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from cartpole_throughput import fmt, parse_batches, write_report  # noqa: E402
 from timing import environment, time_interleaved  # noqa: E402
 
-ARENA = "cloth|domain:square_fabric,initial:crumpled,action:pixel_pick_and_place(1),task:flattening"
+ARENA = "cloth|domain:square_fabric,initial:crumpled,task:flattening"
+TOOL = "pixel_pick_and_place(1)"
 MEASUREMENTS = ("act", "act+reset", "physics", "step", "render")
 SOFTGYM_ACTIONS_PER_S = 9.0  # upper end of SoftGym's per-process rate, see the module docstring
 SOFTGYM_STEPS_PER_S = 440.0
@@ -73,8 +74,8 @@ def make(measurement: str, batch: int, solver: str, args, reset_solver: str | No
     ``reset_solver``: the solver that crumples the starting cloths (untimed; default ``solver``), so that
     measurements of several solvers can start from the same cloths."""
     def build(solver):
-        return jarena.build_arena(f"{ARENA},resolution:{args.resolution},horizon:{args.horizon},solver:{solver},"
-                                  f"substeps:{args.substeps}")
+        return jarena.build_arena(f"{ARENA},action:{args.tool},resolution:{args.resolution},horizon:{args.horizon},"
+                                  f"solver:{solver},substeps:{args.substeps}")
 
     arena = build(solver)
     params = arena.default_params()
@@ -157,7 +158,7 @@ def time_batch(batch: int, solver: str, args) -> dict:
 
 
 def markdown(env: dict, rows: list[dict], args) -> str:
-    steps_per_action = jarena.build_arena(ARENA).tool.substeps
+    steps_per_action = jarena.build_arena(f"{ARENA},action:{args.tool}").tool.substeps
     lines = [f"Device: {env['device']} ({env['backend']}), CPU {env['cpu']} x {env['cpu_count']}, Python "
              f"{env['python']}, jax {env['jax']}; {env['date']}", f"Command: `{env['command']}`", "",
              f"One action = {steps_per_action} physics steps ({args.substeps} substeps each), 40 x 40 particles, "
@@ -195,6 +196,9 @@ def parse_args(argv=None):
                    help=f"comma-separated cloth solvers to time side by side, from {['auto', *SOLVERS]} "
                         "(default auto: the fused kernel on a GPU)")
     p.add_argument("--substeps", type=int, default=8, help="XPBD substeps per physics step (default 8, the arena's)")
+    p.add_argument("--tool", default=TOOL,
+                   help=f"the arena's action tool (default {TOOL}); e.g. pixel_pick_and_place(1,4,16,4,12): phases "
+                        "of lift 4, carry 16, lower 4 and settle 12 steps (40 steps per action instead of 68)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default=None, help="write a markdown table (and JSON beside it) here")
     args = p.parse_args(argv)
