@@ -43,7 +43,10 @@ class Timing:
     The carry's 32 steps (0.32 s) move the picker at most ~1.5 m/s over the workspace's half-width and
     typically 0.5-1 m/s. A cloth dragged faster slides on after release (the floor's Coulomb friction,
     0.75 g, takes 0.4 s to stop a cloth moving at 3 m/s): with 16 steps the corner-pulling oracle
-    flattened 14 of 24 crumpled 24 x 24 cloths to 0.9 coverage within 10 actions, with 32, 20-23.
+    flattened 14 of 24 crumpled 24 x 24 cloths to 0.9 coverage within 10 actions, with 32, 20-23. Shorter
+    phases trade that for speed: on 128 crumpled 40 x 40 eval episodes the flattening oracle reaches 0.9 on 93%
+    with these 68 steps (2,483 actions/s for 1024 cloths on an H200) and on 84% with ``(2, 16, 2, 8)``, 32 steps
+    (5,115 actions/s; ``benchmarks/RESULTS.md``, "Cloth").
     """
 
     lift: int = 4
