@@ -97,14 +97,19 @@ def test_the_distance_is_one_unfolded_and_zero_at_any_variant_of_the_goal(kind):
 
 def test_the_arena_puts_the_goal_in_info():
     arena = _arena("side_fold")
-    state, info = arena.reset(episode=0)
+
+    @jax.jit  # one compiled call: run op by op, the reset and the step dispatch thousands of small programs
+    def reset_and_step():
+        state, info = arena.reset(episode=0)
+        goals = tasks.folded_goals(state.physics.mesh, "side_fold", state.physics.positions)
+        return state, info, goals, arena.step(state, -jnp.ones(arena.action_spec.shape))[1]
+
+    state, info, goals, stepped = reset_and_step()
     n = state.physics.positions.shape[0]
     assert arena.goal_dim == n * 3
-    goals = tasks.folded_goals(state.physics.mesh, "side_fold", state.physics.positions)
     np.testing.assert_allclose(np.asarray(info.goal), np.asarray(goals[0]).reshape(-1), atol=1e-6)
     assert float(info.metrics["normalised_fold_distance"]) == pytest.approx(1.0, abs=1e-3)
-    _, info = arena.step(state, -jnp.ones(arena.action_spec.shape))
-    np.testing.assert_allclose(np.asarray(info.goal), np.asarray(goals[0]).reshape(-1), atol=1e-6)
+    np.testing.assert_allclose(np.asarray(stepped.goal), np.asarray(goals[0]).reshape(-1), atol=1e-6)
 
 
 def test_crumpled_folds_aim_at_the_canonical_pose_and_get_time_to_flatten():
