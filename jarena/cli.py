@@ -77,6 +77,9 @@ def _agent_config(args, arena) -> dict:
 
 
 def _cmd_evaluate(args) -> int:
+    from jarena import distributed
+
+    distributed.initialize(_launch(args))  # before any computation: every process joins the run
     import jax
 
     import jarena
@@ -84,6 +87,8 @@ def _cmd_evaluate(args) -> int:
     from jarena.runners.evaluate import run_episodes
     from jarena.training import restore_policy
 
+    main = distributed.is_main_process()
+    say = print if main else (lambda *a, **k: None)
     arena = jarena.build_arena(args.arena)
     config = _agent_config(args, arena)
     agent = jarena_agents.build_agent(args.agent, config)
@@ -92,26 +97,16 @@ def _cmd_evaluate(args) -> int:
         agent_state = restore_policy(agent, arena, args.checkpoint, args.select)
     episodes = list(arena.episodes(args.split))[: args.episodes] if args.episodes else None
     n = len(episodes) if episodes is not None else len(arena.episodes(args.split))
-    videos = min(_count(args.videos, "--videos"), n)
-    if videos:
-        from jarena.render.frames import RenderError, can_render
-        from jarena.render.record import check_video
-
-        try:
-            if not can_render(arena):
-                raise RenderError(f"arena {args.arena!r} has no renderer")
-            check_video(arena)
-        except RenderError as e:
-            print(f"warning: no videos: {e}", file=sys.stderr)
-            videos = 0
-    from jarena import distributed
-
+    filmed, write = _filming(arena, min(_count(args.videos, "--videos"), n), main, args.arena)
     devices = distributed.mesh(args.devices).devices.size
-    print(f"evaluating {agent.name!r} on {args.arena!r}: {n} {args.split} episodes in parallel "
-          f"on {devices} {jax.default_backend()} device(s) ...", flush=True)
+    say(f"evaluating {agent.name!r} on {args.arena!r}: {n} {args.split} episodes in parallel "
+        f"on {devices} {jax.default_backend()} device(s) ...", flush=True)
     start = time.perf_counter()
     result, physics = run_episodes(agent, arena, jax.random.key(args.seed), split=args.split, episodes=episodes,
-                                   agent_state=agent_state, filmed=videos, devices=args.devices)
+                                   agent_state=agent_state, filmed=filmed, devices=args.devices)
+    # the collective part ends here: what follows works on host copies, and only process 0 writes
+    if not main:
+        return 0
     seconds = time.perf_counter() - start
     steps = int(result.lengths.sum())
     print(f"done in {seconds:.1f} s (compile included), {steps} agent steps")
@@ -120,9 +115,32 @@ def _cmd_evaluate(args) -> int:
         with open(args.json, "w") as f:
             json.dump({"summary": result.summary(), "episodes": result.per_episode()}, f, indent=2)
         print(f"wrote {args.json}")
-    if videos:  # after the results: a failing encoder or renderer costs the videos only
-        _write_videos(arena, physics, result, Path(args.video_dir), videos)
+    if write:  # after the results: a failing encoder or renderer costs the videos only
+        _write_videos(arena, physics, result, Path(args.video_dir), filmed)
     return 0
+
+
+def _filming(arena, videos: int, main: bool, name: str) -> tuple[int, bool]:
+    """``(filmed, write)``: how many episodes the evaluation films (the same in every process: it shapes the
+    compiled program, which all processes must share) and whether this process writes them (process 0, where it
+    can render; a renderer that fails here is a warning, not a lost evaluation)."""
+    from jarena.render.frames import RenderError, can_render
+    from jarena.render.record import check_video
+
+    if not videos:
+        return 0, False
+    if not can_render(arena):
+        if main:
+            print(f"warning: no videos: arena {name!r} has no renderer", file=sys.stderr)
+        return 0, False
+    if not main:
+        return videos, False
+    try:
+        check_video(arena)
+    except RenderError as e:
+        print(f"warning: no videos: {e}", file=sys.stderr)
+        return videos, False
+    return videos, True
 
 
 def _count(value: int, flag: str) -> int:
@@ -159,6 +177,24 @@ def _launch(args):
         raise ValueError(f"a multi-process launch needs --coordinator, --num-processes and --process-id; missing "
                          f"{', '.join(missing)}")
     return distributed.Launch(args.coordinator, args.num_processes, args.process_id)
+
+
+def _add_launch_flags(parser: argparse.ArgumentParser, devices_help: str) -> None:
+    """``--devices`` and the multi-process launch flags, shared by the commands that run on a device mesh."""
+    group = parser.add_argument_group(
+        "devices and processes",
+        "The arenas are split over the devices, the networks replicated, and the results are what one device "
+        "computes. For several processes (hosts), start the same command in each with its --process-id (or "
+        "set JARENA_COORDINATOR, JARENA_NUM_PROCESSES, JARENA_PROCESS_ID, e.g. from SLURM's $SLURM_NTASKS and "
+        "$SLURM_PROCID); process 0 prints and writes the outputs, so paths must be on a filesystem all "
+        "processes share. A process that dies or hangs makes the others stop within JARENA_HEARTBEAT_TIMEOUT "
+        "(default 60) or JARENA_WAIT_TIMEOUT (default 900) seconds, naming it; SIGTERM ends every command "
+        "promptly, keeping what it saved.")
+    group.add_argument("--devices", default=None, metavar="N|all", help=devices_help)
+    group.add_argument("--coordinator", default=None, metavar="HOST:PORT",
+                       help="address of process 0's coordination service")
+    group.add_argument("--num-processes", type=int, default=None, metavar="N", help="processes in the run")
+    group.add_argument("--process-id", type=int, default=None, metavar="I", help="this process, 0 .. N-1")
 
 
 def _cmd_train(args) -> int:
@@ -198,12 +234,14 @@ def _cmd_train(args) -> int:
 
 
 def _cmd_collect(args) -> int:
+    from jarena import distributed
+
+    distributed.initialize(_launch(args))  # before any computation: every process joins the run
     import jax
     import numpy as np
 
     import jarena
     import jarena_agents
-    from jarena import distributed
     from jarena.data.dataset import TrajectoryDataset
 
     if args.trajectories < 1:
@@ -212,6 +250,7 @@ def _cmd_collect(args) -> int:
         raise ValueError(f"--batch must be at least 1, got {args.batch}")
     if args.append and args.overwrite:
         raise ValueError("--append and --overwrite exclude each other: add to the dataset, or replace it")
+    main = distributed.is_main_process()
     arena = jarena.build_arena(args.arena)
     config = _agent_config(args, arena)
     agent = jarena_agents.build_agent(args.agent, config)
@@ -220,18 +259,25 @@ def _cmd_collect(args) -> int:
         held = TrajectoryDataset(args.out).num_trajectories()
         raise ValueError(f"{args.out} already holds a dataset ({held} trajectories); pass --append to add to it "
                          "or --overwrite to replace it")
-    with TrajectoryDataset(args.out, "a" if args.append else "w", **jarena.data.configs_for(arena)) as dataset:
-        before = dataset.num_trajectories()
-        num_arenas = args.batch or min(args.trajectories, 64)
+    # every process reads how many trajectories are stored (the key depends on it); only process 0 writes
+    before = TrajectoryDataset(args.out).num_trajectories() if exists and args.append else 0
+    dataset = (TrajectoryDataset(args.out, "a" if args.append else "w", **jarena.data.configs_for(arena))
+               if main else None)
+    try:
         devices = distributed.mesh(args.devices).devices.size
-        print(f"collecting {args.trajectories} trajectories of {agent.name!r} on {args.arena!r} into {args.out} "
-              f"({num_arenas} arenas in parallel on {devices} {jax.devices()[0].platform} device(s), seed "
-              f"{args.seed})", flush=True)
+        num_arenas = args.batch or -(-min(args.trajectories, 64) // devices) * devices  # splits over the devices
+        if main:
+            print(f"collecting {args.trajectories} trajectories of {agent.name!r} on {args.arena!r} into {args.out} "
+                  f"({num_arenas} arenas in parallel on {devices} {jax.devices()[0].platform} device(s), seed "
+                  f"{args.seed})", flush=True)
         start = time.perf_counter()
         # Appending folds the trajectories already there into the key, so each run adds new episodes.
         stored = jarena.collect(agent, arena, dataset, args.trajectories, key=jax.random.fold_in(
             jax.random.key(args.seed), before), num_arenas=num_arenas, progress=not args.no_progress,
             devices=args.devices)
+        # the collective part ends here: process 0 alone reads its dataset back and prints
+        if not main:
+            return 0
         seconds = time.perf_counter() - start
         lengths = dataset.lengths()
         first_step = int(lengths[:stored[0]].sum())
@@ -241,6 +287,9 @@ def _cmd_collect(args) -> int:
         print(f"stored {len(stored)} trajectories ({int(new.sum())} transitions) in {seconds:.1f} s: return "
               f"{returns.mean():.2f} +- {returns.std():.2f} (mean +- std), length {new.mean():.1f}")
         print(f"dataset {args.out}: {dataset.num_trajectories()} trajectories, {dataset.num_steps()} transitions")
+    finally:
+        if dataset is not None:
+            dataset.close()
     print(f'clone it with: jarena train bc "{args.arena}" --set dataset={args.out}')
     return 0
 
@@ -303,19 +352,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="film the first N eval episodes into RUN_DIR/videos (0: none); written after the results, "
                         "so a missing encoder or renderer costs only the videos")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    group = p.add_argument_group(
-        "devices and processes",
-        "Data-parallel training: the arenas are split over the devices, the networks replicated, and the run "
-        "computes what it computes on one device. For several processes (hosts), start the same command in "
-        "each with its --process-id (or set JARENA_COORDINATOR, JARENA_NUM_PROCESSES, JARENA_PROCESS_ID, e.g. "
-        "from SLURM's $SLURM_NTASKS and $SLURM_PROCID); process 0 writes the run directory, all write "
-        "checkpoints, so it must be on a filesystem all processes share.")
-    group.add_argument("--devices", default=None, metavar="N|all",
-                       help="devices to train on: 'all', or a count (default: all in a multi-process run, else 1)")
-    group.add_argument("--coordinator", default=None, metavar="HOST:PORT",
-                       help="address of process 0's coordination service")
-    group.add_argument("--num-processes", type=int, default=None, metavar="N", help="processes in the run")
-    group.add_argument("--process-id", type=int, default=None, metavar="I", help="this process, 0 .. N-1")
+    _add_launch_flags(p, "devices to train on: 'all', or a count (default: all in a multi-process run, else 1)")
     p.set_defaults(fn=_cmd_train)
 
     p = sub.add_parser("evaluate", help="evaluate an agent on an arena's fixed episodes and print a results table",
@@ -336,8 +373,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", default=None, help="also write the summary and per-episode results to this file")
     p.add_argument("--videos", type=int, default=0, metavar="N", help="film the first N episodes (0: none)")
     p.add_argument("--video-dir", default="videos", help="folder for --videos")
-    p.add_argument("--devices", default=None, metavar="N|all",
-                   help="split the episodes over this many devices, or 'all' (default: 1); the results are the same")
+    _add_launch_flags(p, "split the episodes over this many devices, or 'all' (default: all in a multi-process "
+                         "run, else 1); the results are the same")
     p.set_defaults(fn=_cmd_evaluate)
 
     p = sub.add_parser(
@@ -362,14 +399,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", type=parse_override, metavar="KEY=VALUE",
                    help="override a config key of the agent (repeatable)")
     p.add_argument("--batch", type=int, default=None, metavar="B",
-                   help="arenas run in parallel (default: min(N, 64))")
+                   help="arenas run in parallel (default: min(N, 64), rounded up to split evenly over the devices)")
     p.add_argument("--append", action="store_true",
                    help="add to the dataset at PATH (its configs must match the arena's) instead of creating one")
     p.add_argument("--overwrite", action="store_true", help="replace a dataset already at PATH")
-    p.add_argument("--devices", default=None, metavar="N|all",
-                   help="split the arenas over this many devices, or 'all' (default: 1); the trajectories are the "
-                        "same")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_launch_flags(p, "split the arenas over this many devices, or 'all' (default: all in a multi-process run, "
+                         "else 1); the trajectories are the same")
     p.set_defaults(fn=_cmd_collect)
     p = sub.add_parser("render", help="film an agent's episodes in an arena and write an MP4 or GIF video",
                        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
@@ -397,16 +433,42 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from jarena import termination, watchdog
     from jarena.platform import avoid_cpu_eigen_deadlock, enable_compilation_cache
 
     avoid_cpu_eigen_deadlock()
     args = build_parser().parse_args(argv)
     enable_compilation_cache()
+    termination.on_signal(watchdog.terminated)  # the other processes of a run learn of it at once
+    with termination.handling():  # SIGTERM: every command ends promptly, keeping what it saved
+        return _run(args)
+
+
+def _run(args) -> int:
+    """Runs the command; errors become messages (and in a multi-process run, stop the other processes too)."""
+    from jarena import termination, watchdog
+
     try:
         return args.fn(args)
+    except termination.Terminated:
+        # a multi-process run: tell the others and leave without JAX's shutdown barrier (they may be gone)
+        watchdog.fail("received SIGTERM; what was saved is kept", termination.EXIT_STATUS)
+        print("jarena: stopped: received SIGTERM; what was saved is kept (a training run with a run directory "
+              "resumes from its last checkpoint when started again with the same command)", file=sys.stderr,
+              flush=True)
+        return termination.EXIT_STATUS
     except (ValueError, KeyError, FileNotFoundError) as e:
-        print(f"jarena: error: {e}", file=sys.stderr)
+        print(f"jarena: error: {e}", file=sys.stderr, flush=True)
+        watchdog.crashed(e, 2)  # a multi-process run: the others stop at once
         return 2
+    except Exception as e:
+        if watchdog.current() is None:
+            raise
+        import traceback
+
+        traceback.print_exc()
+        watchdog.crashed(e, 1)
+        raise
 
 
 if __name__ == "__main__":

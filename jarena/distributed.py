@@ -10,18 +10,28 @@ GPUs of a host and, after :func:`initialize`, all devices of all processes of a 
 Multi-process runs: call :func:`initialize` (``jax.distributed.initialize``) in every process before any
 other JAX call; each process then runs the same program on its own devices, only the main process
 (:func:`is_main_process`) writes logs, and checkpoints are written collectively by all.
+
+The boundary between the collective part of a run and what one process does alone is :func:`fetch`: every
+process enters the same compiled programs and the same fetches, in the same order, and whatever only process 0
+does afterwards (writing files, rendering videos, printing) works on the host copies ``fetch`` returns, never
+on arrays that span processes (a computation on those would be a collective the others never enter). Each fetch
+of such arrays is a collective point the run's watchdog (``jarena.watchdog``) follows, so that a process that
+dies, hangs or fetches something else makes the others fail within a bounded time instead of waiting forever.
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
+import hashlib
 import os
 from typing import Any
 
 import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+from jarena import watchdog
 
 try:  # the partitioner switch as a scoped context (see _gspmd_partitioner); absent: JAX's default is kept
     from jax._src import config as jax_config
@@ -84,15 +94,22 @@ def launch_from_environment() -> Launch | None:
 _initialized: Launch | None = None
 
 
-def initialize(launch: Launch | None = None) -> Launch | None:
+def initialize(launch: Launch | None = None, limits: watchdog.Limits | None = None) -> Launch | None:
     """Joins a multi-process run (``jax.distributed.initialize``); must come before any other JAX call.
 
     Args:
       launch: where this process stands; default :func:`launch_from_environment`. ``None`` there too: a
         single-process run, nothing to do (returns ``None``).
+      limits: how long a process waits on the others before it fails (:class:`jarena.watchdog.Limits`;
+        default from ``JARENA_HEARTBEAT_TIMEOUT`` and ``JARENA_WAIT_TIMEOUT``, else 60 s and 900 s).
 
-    On CPU devices the processes exchange data through gloo, JAX's CPU collectives. Calling it again with
-    the same launch does nothing; with another one it raises.
+    On CPU devices the processes exchange data through gloo, JAX's CPU collectives. Each process starts its
+    watchdog (``jarena.watchdog``): a process that dies or hangs makes the others fail within those limits,
+    saying which one went missing, and at exit every process waits for the others to finish. JAX's preemption
+    service stays off: jarena takes no preemption sync points, and with the service on SIGTERM is caught and
+    ignored (the process would run on); off, SIGTERM ends the process (and the command line's handler,
+    ``jarena.termination``, first lets it close its logs). Calling it again with the same launch does nothing;
+    with another one it raises.
     """
     global _initialized
     launch = launch or launch_from_environment()
@@ -102,10 +119,16 @@ def initialize(launch: Launch | None = None) -> Launch | None:
         raise RuntimeError(f"jax.distributed is already initialised for {_initialized}; cannot join {launch}")
     if launch.local_devices is not None:
         _set_cpu_device_count(launch.local_devices)
+    limits = limits or watchdog.Limits.from_environment()
     jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    jax.config.update("jax_enable_preemption_service", False)
+    # JAX's own heartbeat is the backstop: it ends the processes (with its own message) only after the
+    # watchdog's shorter limit has reported the missing process in jarena's words
     jax.distributed.initialize(coordinator_address=launch.coordinator, num_processes=launch.num_processes,
-                               process_id=launch.process_id)
+                               process_id=launch.process_id,
+                               heartbeat_timeout_seconds=int(2 * limits.heartbeat + 10))
     _initialized = launch
+    watchdog.start(launch, limits)
     return launch
 
 
@@ -248,9 +271,18 @@ def replicate(tree: PyTree) -> PyTree:
                                   if isinstance(x, jax.Array) else x, tree)
 
 
-def fetch(tree: PyTree) -> PyTree:
+def fetch(tree: PyTree, name: str = "fetch") -> PyTree:
     """Host (numpy) copies of ``tree``'s arrays (PRNG keys: keys on the default device); a sharded array spanning
-    other processes is gathered first (a collective: every process calls it alike)."""
+    other processes is gathered first (a collective: every process calls it alike).
+
+    Where ``tree`` holds arrays that span processes, this is a collective point of the run's watchdog
+    (``jarena.watchdog``): ``name`` (e.g. ``"validation 3"``) and the shapes fetched are what it reports when
+    the processes part ways here.
+    """
+    spanning = [x for x in jax.tree_util.tree_leaves(tree) if isinstance(x, jax.Array) and not x.is_fully_addressable]
+    if spanning:
+        watchdog.enter(name, _fingerprint(tree))
+
     def get(x):
         if isinstance(x, jax.Array) and jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
             return jax.random.wrap_key_data(get(jax.random.key_data(x)), impl=jax.random.key_impl(x))
@@ -261,3 +293,19 @@ def fetch(tree: PyTree) -> PyTree:
         return jax.device_get(x)
 
     return jax.tree_util.tree_map(get, tree)
+
+
+def _fingerprint(tree: PyTree) -> str:
+    """A short summary of what ``tree`` holds (leaf count, bytes, and a hash of its structure, shapes and dtypes):
+    two processes fetching at the same point must agree on it."""
+    leaves, structure = jax.tree_util.tree_flatten(tree)
+    shapes = [(tuple(np.shape(x)), str(getattr(x, "dtype", type(x).__name__))) for x in leaves]
+    size = sum(int(getattr(x, "nbytes", 0) or 0) for x in leaves)
+    digest = hashlib.sha1(repr((str(structure), shapes)).encode()).hexdigest()[:10]
+    return f"{len(leaves)} arrays, {size} bytes, #{digest}"
+
+
+def collective_point(name: str) -> None:
+    """Marks a point every process of a multi-process run reaches in the same order (a checkpoint save, say), for
+    the watchdog (``jarena.watchdog``); nothing in a single-process run."""
+    watchdog.enter(name)

@@ -27,7 +27,7 @@ from typing import Any
 import jax
 import numpy as np
 
-from jarena import distributed
+from jarena import distributed, watchdog
 from jarena.checkpoint import Checkpointer
 from jarena.core.arena import Arena
 from jarena.core.types import ArenaState, Info
@@ -192,6 +192,10 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
     history, validations_done = [], []
     checkpoint_every = 5 if checkpoint_every is None else checkpoint_every
     checkpointer = Checkpointer(run_path / "checkpoints") if run_path is not None and checkpoint_every else None
+    watchdog.set_resume_hint(
+        f"start every process again with the same command: the run resumes from its last checkpoint in "
+        f"{checkpointer.directory}" if checkpointer is not None else
+        "start the run again (it has no checkpoints: give it a run directory to keep them)")
     keeper = _BestPolicy(agent, arena, rule, run_path / BEST_POLICY_DIR if checkpointer is not None else None)
     first_chunk = 0
     if checkpointer is not None and checkpointer.latest_step() is not None:
@@ -217,41 +221,43 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
             if closing is not None:
                 closing.close()
 
-    for ran, index in enumerate(range(first_chunk, num_chunks)):
-        if stop_after_chunks is not None and ran >= stop_after_chunks:
-            close()
-            return TrainResult(train_state=train_state, history=history, validations=validations_done,
-                               evaluation=None)
-        n = min(chunk_updates, num_updates - done_updates)
-        with distributed.tracing_on(mesh):
-            train_state, metrics = chunk(train_state, arena, n)
-        metrics = jax.device_get(metrics)
-        done_updates += n
-        row = _history_row(metrics, done_updates, steps_per_update, time.perf_counter() - start)
-        history.append(row)
-        bar.update(n * steps_per_update, row["episode_return"])
-        if writer is not None:
-            writer.log("train", row)
-        if validate_every and ((index + 1) % validate_every == 0 or index + 1 == num_chunks):
-            result = validate(agent, arena, jax.random.key(index),
-                              agent_state=_local_policy(agent.policy(train_state, arena.spec, True), mesh),
-                              devices=devices)
-            validations_done.append({"update": done_updates, "env_steps": row["env_steps"], **result.summary()})
+    try:  # whatever ends the loop (an error, SIGTERM), the logs and checkpoint managers are closed
+        for ran, index in enumerate(range(first_chunk, num_chunks)):
+            if stop_after_chunks is not None and ran >= stop_after_chunks:
+                return TrainResult(train_state=train_state, history=history, validations=validations_done,
+                                   evaluation=None)
+            n = min(chunk_updates, num_updates - done_updates)
+            with distributed.tracing_on(mesh):
+                train_state, metrics = chunk(train_state, arena, n)
+            metrics = distributed.fetch(metrics, f"training chunk {index + 1}")
+            done_updates += n
+            row = _history_row(metrics, done_updates, steps_per_update, time.perf_counter() - start)
+            history.append(row)
+            bar.update(n * steps_per_update, row["episode_return"])
             if writer is not None:
-                writer.log("validation", validations_done[-1])
-            kept = keeper.offer(train_state, index + 1, validations_done[-1])
-            bar.note(f"validation return {validations_done[-1]['return_mean']:.1f} at step {row['env_steps']}"
-                     + (" (best so far: kept)" if kept else ""))
-        if log_path is not None:  # the curves so far survive a run that is stopped or killed
-            _write_csv(log_path / "train.csv", history)
-            _write_csv(log_path / "validation.csv", validations_done)
-        if checkpointer is not None and ((index + 1) % checkpoint_every == 0 or index + 1 == num_chunks):
-            checkpointer.save(index + 1, train_state, {"history": history, "validations": validations_done})
-    close()
+                writer.log("train", row)
+            if validate_every and ((index + 1) % validate_every == 0 or index + 1 == num_chunks):
+                result = validate(agent, arena, jax.random.key(index),
+                                  agent_state=_local_policy(agent.policy(train_state, arena.spec, True), mesh),
+                                  devices=devices)
+                validations_done.append({"update": done_updates, "env_steps": row["env_steps"], **result.summary()})
+                if writer is not None:
+                    writer.log("validation", validations_done[-1])
+                kept = keeper.offer(train_state, index + 1, validations_done[-1])
+                bar.note(f"validation return {validations_done[-1]['return_mean']:.1f} at step {row['env_steps']}"
+                         + (" (best so far: kept)" if kept else ""))
+            if log_path is not None:  # the curves so far survive a run that is stopped or killed
+                _write_csv(log_path / "train.csv", history)
+                _write_csv(log_path / "validation.csv", validations_done)
+            if checkpointer is not None and ((index + 1) % checkpoint_every == 0 or index + 1 == num_chunks):
+                distributed.collective_point(f"checkpoint {index + 1}")
+                checkpointer.save(index + 1, train_state, {"history": history, "validations": validations_done})
+    finally:
+        close()
     policy, selected = keeper.choice(train_state, history[-1] if history else None,
                                      validations_done[-1] if validations_done else None)
-    evaluation = _evaluate_and_write(agent, arena, _local_policy(policy, mesh), selected, log_path, eval_videos,
-                                     history, validations_done, devices)
+    evaluation = _evaluate_and_write(agent, arena, _local_policy(policy, mesh), selected, run_path, log_path,
+                                     eval_videos, history, validations_done, devices)
     return TrainResult(train_state=train_state, history=history, validations=validations_done,
                        evaluation=evaluation, policy=policy, selected=selected)
 
@@ -326,7 +332,7 @@ class _BestPolicy:
         if self.rule.replaces is None or not self.rule.replaces(row["return_mean"],
                                                                  None if self.row is None else self.row["return_mean"]):
             return False
-        self.policy = distributed.fetch(self.agent.policy(train_state, self.arena.spec, True))
+        self.policy = distributed.fetch(self.agent.policy(train_state, self.arena.spec, True), "best policy")
         self.row, self.chunk = row, chunk
         if self.saver is not None:
             self.saver.save(chunk, self.policy, {"validation": row})
@@ -360,33 +366,38 @@ class _BestPolicy:
             self.saver.close()
 
 
-def _evaluate_and_write(agent, arena: Arena, policy, selected: dict, run_path: Path | None, eval_videos: int,
-                        history, validations, devices=None) -> EvalResult:
-    """Evaluates ``policy`` on the eval split and writes the results; videos come last, and a failure in
-    rendering or encoding them is a warning (the results are already on disk)."""
-    videos = 0
-    if run_path is not None and eval_videos and can_render(arena):
+def _evaluate_and_write(agent, arena: Arena, policy, selected: dict, run_path: Path | None, log_path: Path | None,
+                        eval_videos: int, history, validations, devices=None) -> EvalResult:
+    """Evaluates ``policy`` on the eval split and writes the results to ``log_path`` (process 0's run directory);
+    videos come last, and a failure in rendering or encoding them is a warning (the results are already on disk).
+
+    How many episodes are filmed depends only on what every process knows alike (a run directory, the arena
+    can render): it shapes the compiled evaluation, which all processes must share."""
+    videos = min(int(eval_videos), arena.num_eval_episodes) if run_path is not None and can_render(arena) else 0
+    write_videos = bool(videos) and log_path is not None
+    if write_videos:
         try:
             check_video(arena)  # before compiling: no OpenGL here means no videos, not no results
-            videos = min(int(eval_videos), arena.num_eval_episodes)
         except RenderError as e:
             warnings.warn(f"evaluating without videos: {e}", stacklevel=3)
+            write_videos = False
     evaluation, physics = run_episodes(agent, arena, jax.random.key(0), agent_state=policy, filmed=videos,
                                        devices=devices)
     evaluation = dataclasses.replace(evaluation, selected=selected)
-    if run_path is None:
+    # the collective part ends here: process 0 writes the results and renders the videos from host copies
+    if log_path is None:
         return evaluation
-    _write_csv(run_path / "train.csv", history)
-    _write_csv(run_path / "validation.csv", validations)
-    (run_path / "evaluation.json").write_text(json.dumps(
+    _write_csv(log_path / "train.csv", history)
+    _write_csv(log_path / "validation.csv", validations)
+    (log_path / "evaluation.json").write_text(json.dumps(
         {"summary": evaluation.summary(), "selected": selected, "episodes": evaluation.per_episode()}, indent=2))
-    _plot(run_path / "learning_curve.png", history, validations, evaluation, agent.name, arena.name)
-    if videos:
-        paths = [run_path / "videos" / f"eval_episode_{int(i)}" for i in evaluation.episodes[:videos]]
+    _plot(log_path / "learning_curve.png", history, validations, evaluation, agent.name, arena.name)
+    if write_videos:
+        paths = [log_path / "videos" / f"eval_episode_{int(i)}" for i in evaluation.episodes[:videos]]
         try:
             write_episodes(arena, physics, evaluation.lengths[:videos], paths)
         except Exception as e:  # a renderer or encoder failing: the results above are written already
-            warnings.warn(f"videos not written ({type(e).__name__}: {e}); the results are in {run_path}. "
+            warnings.warn(f"videos not written ({type(e).__name__}: {e}); the results are in {log_path}. "
                           f"To get videos: {VIDEO_FIXES}", stacklevel=3)
     return evaluation
 

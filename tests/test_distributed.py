@@ -26,10 +26,10 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def _run_all(commands: list[list[str]], env: dict) -> list[str]:
+def _run_all(commands: list[list[str]], env: dict, cwd: Path | None = None) -> list[str]:
     """Starts every command at once (the processes of one run), waits for all, and returns their outputs;
     each must succeed."""
-    running = [subprocess.Popen(c, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    running = [subprocess.Popen(c, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=cwd)
                for c in commands]
     try:
         outputs = [p.communicate(timeout=600)[0] for p in running]
@@ -158,19 +158,74 @@ def test_eight_devices_in_one_process_train_as_one_device(one_device, tmp_path):
     _assert_same_run(got, one_device["ppo"])
 
 
-def test_the_command_line_launches_two_processes(tmp_path):
-    """``jarena train`` with --coordinator/--num-processes/--process-id, as a cluster launcher would start it:
-    both processes train on the 2-device mesh, and only process 0 prints the results and writes the run."""
-    env = _cpu_devices(1)
-    port, run = _free_port(), tmp_path / "run"
-    commands = [[sys.executable, "-m", "jarena.cli", "train", "ppo", "classic|domain:cartpole", "--steps", "512",
-                 "--set", "num_arenas=8", "--set", "rollout_length=32", "--no-progress", "--videos", "0",
-                 "--run-dir", str(run), "--coordinator", f"localhost:{port}", "--num-processes", "2",
-                 "--process-id", str(i)] for i in range(2)]
-    outputs = _run_all(commands, env)
+def _cli_on_processes(args: list[str], processes: int, cwd: Path) -> list[str]:
+    """``python -m jarena.cli ARGS`` in ``processes`` processes of one CPU device each, launched as a cluster
+    launcher would (only the launch flags added), or with one process on a mesh of as many CPU devices (the
+    reference); returns their outputs."""
+    env = _cpu_devices(1 if processes > 1 else 2)
+    command = [sys.executable, "-m", "jarena.cli", *args]
+    if processes == 1:
+        return _run_all([command + ["--devices", "all"]], env, cwd)
+    port = _free_port()
+    return _run_all([command + ["--coordinator", f"localhost:{port}", "--num-processes", str(processes),
+                                "--process-id", str(i)] for i in range(processes)], env, cwd)
+
+
+def _csv_rows(path: Path) -> list[dict]:
+    import csv
+
+    with open(path) as f:
+        return [{k: float(v) for k, v in row.items() if k != "seconds"} for row in csv.DictReader(f)]
+
+
+def test_the_command_line_launches_two_processes_with_its_defaults(tmp_path):
+    """``jarena train`` with --coordinator/--num-processes/--process-id and the command's defaults (videos
+    included), as a cluster launcher would start it: both processes train on the 2-device mesh and finish, only
+    process 0 prints the results and writes the run, and the run is the one process's on two devices."""
+    args = ["train", "ppo", "classic|domain:cartpole", "--steps", "512", "--set", "num_arenas=8", "--set",
+            "rollout_length=32", "--no-progress", "--run-dir", "run"]
+    (tmp_path / "one").mkdir()
+    (tmp_path / "two").mkdir()
+    _cli_on_processes(args, 1, tmp_path / "one")
+    outputs = _cli_on_processes(args, 2, tmp_path / "two")
     assert "on 2 cpu devices of 2 processes" in outputs[0] and "| return" in outputs[0]
     assert "| return" not in outputs[1] and "training 'ppo'" not in outputs[1]
-    assert (run / "evaluation.json").is_file() and (run / "checkpoints").is_dir()
+    one, two = tmp_path / "one" / "run", tmp_path / "two" / "run"
+    assert (two / "checkpoints").is_dir() and (two / "learning_curve.png").is_file()
+    assert sorted(p.name for p in (two / "videos").iterdir()) == ["eval_episode_0.mp4", "eval_episode_1.mp4"]
+    for name in ("train.csv", "validation.csv"):
+        got, want = _csv_rows(two / name), _csv_rows(one / name)
+        assert len(got) == len(want) and got[0].keys() == want[0].keys()
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_allclose(list(a.values()), list(b.values()), rtol=2e-4, atol=2e-5)
+    got, want = (json.loads((run / "evaluation.json").read_text())["summary"] for run in (two, one))
+    np.testing.assert_allclose(got["return_mean"], want["return_mean"], rtol=0.02)
+
+
+def test_evaluate_and_collect_launch_two_processes(tmp_path):
+    """``jarena evaluate`` (filming two episodes) and ``jarena collect`` on two processes finish, and give what
+    one process gives: the same per-episode results and videos, the same stored trajectories."""
+    from jarena.data import TrajectoryDataset
+
+    evaluate = ["evaluate", "oracle_pendulum", "classic|domain:pendulum,task:swingup", "--episodes", "8",
+                "--videos", "2", "--json", "eval.json"]
+    collect = ["collect", "oracle_pendulum", "classic|domain:pendulum,task:swingup", "--out", "demos",
+               "--trajectories", "6", "--no-progress"]
+    for processes in (1, 2):
+        (tmp_path / str(processes)).mkdir()
+        outputs = _cli_on_processes(evaluate, processes, tmp_path / str(processes))
+        assert "| return" in outputs[0] and all("| return" not in o for o in outputs[1:])
+        outputs = _cli_on_processes(collect, processes, tmp_path / str(processes))
+        assert "stored 6 trajectories" in outputs[0] and all("stored" not in o for o in outputs[1:])
+    one, two = tmp_path / "1", tmp_path / "2"
+    got, want = (json.loads((d / "eval.json").read_text())["episodes"] for d in (two, one))
+    assert [e["episode"] for e in got] == [e["episode"] for e in want]
+    np.testing.assert_allclose([e["return"] for e in got], [e["return"] for e in want], rtol=1e-5)
+    assert sorted(os.listdir(two / "videos")) == sorted(os.listdir(one / "videos")) == \
+        ["eval_episode_0.mp4", "eval_episode_1.mp4"]
+    stored = [[(t["episode"], float(np.sum(t["reward"]))) for t in TrajectoryDataset(d / "demos")] for d in (two, one)]
+    assert len(stored[0]) == 6
+    np.testing.assert_allclose(np.asarray(stored[0]), np.asarray(stored[1]), rtol=1e-5)
 
 
 SHARDED_ROLLOUT = """

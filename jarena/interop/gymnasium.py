@@ -10,11 +10,15 @@ fixed validation and evaluation episodes, ``arena.episodes("eval")``). The vecto
 arenas in the same step (Gymnasium's ``AutoresetMode.SAME_STEP``): the returned observation is the new
 episode's, and ``info["final_obs"]`` and ``info["final_info"]`` hold the finished one's (with
 ``info["_final_obs"]`` marking where), as Gymnasium's vector envs do.
+
+``step`` checks actions on the host before stepping and raises :class:`InvalidAction` for one outside the
+action space, as Gymnasium's own environments do; ``ArenaEnv.step`` after an episode ended (terminated or
+truncated) raises ``gymnasium.error.ResetNeeded`` until ``reset()``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import gymnasium
@@ -87,6 +91,82 @@ def _info(info: Info, index: Any = ()) -> dict[str, Any]:
             "metrics": {k: float(take(v)) for k, v in info.metrics.items()}}
 
 
+class InvalidAction(gymnasium.error.InvalidAction, AssertionError, ValueError):
+    """An action outside the exported action space, raised by ``step`` before the arena steps (an
+    ``AssertionError``, as Gymnasium's CartPole-v1 raises, and a ``ValueError``).
+
+    Discrete: an integer (Python int, numpy integer scalar or 0-d array; not a float or bool) in range.
+    Box: an array of the space's shape (floats or integers for a float Box) of finite values: NaN and inf
+    raise, while finite values outside ``[low, high]`` are clipped by the arena, as Gymnasium's Pendulum-v1
+    and MountainCarContinuous-v0 clip them. Dict and Tuple: each entry by these rules. The vector env
+    applies them to the action of every env (a leading batch axis).
+    """
+
+
+#: The array dtype kinds (``np.dtype.kind``) a Box of each kind takes: a float Box also takes integers.
+_BOX_KINDS = {"f": "iuf", "i": "iu", "u": "iu", "b": "b"}
+
+
+def _as(shape: tuple[int, ...]) -> str:
+    return "a scalar" if shape == () else f"an array of shape {shape}"
+
+
+def _leaf_problem(space: spaces.Space, x: np.ndarray, batch: tuple[int, ...]) -> tuple[str, Any] | None:
+    """``None`` if host array ``x`` holds actions (of batch shape ``batch``) of leaf ``space``, else why not
+    and which ones: a boolean array of shape ``batch``, or ``None`` when ``x``'s shape or dtype is wrong."""
+    shape = batch + space.shape
+    if isinstance(space, spaces.Discrete):
+        first, last = int(space.start), int(space.start + space.n - 1)
+        valid = f"valid actions are the integers {first} to {last}"
+        if x.dtype.kind not in "iu" or x.shape != shape:
+            return f"{valid}, as {_as(shape)} of an integer dtype; got {x.dtype} of shape {x.shape}", None
+        bad = (x < first) | (x > last)
+        return (valid, bad) if bad.any() else None
+    if isinstance(space, spaces.Box):
+        if x.dtype.kind not in _BOX_KINDS[space.dtype.kind] or x.shape != shape:
+            dtype = {"f": "a float or integer", "b": "a bool"}.get(space.dtype.kind, "an integer")
+            return f"expected {_as(shape)} of {dtype} dtype; got {x.dtype} of shape {x.shape}", None
+        if space.dtype.kind == "f":
+            bad = ~np.isfinite(x).reshape(batch + (-1,)).all(-1)
+            if bad.any():
+                return "values must be finite, not NaN or inf (finite values outside the bounds are clipped)", bad
+    return None
+
+
+def _check_action(space: spaces.Space, action: Any, batch: tuple[int, ...] = (), name: str = "action") -> None:
+    """Raises :class:`InvalidAction` unless host ``action`` is in ``space`` (``batch``: the leading batch
+    shape of a vector env's actions); numpy only, no device work."""
+    if isinstance(space, spaces.Dict):
+        if not isinstance(action, Mapping) or set(action) != set(space.spaces):
+            raise InvalidAction(f"{name} {action!r} is not in the action space {space}: expected a dict with "
+                                f"keys {list(space.spaces)}")
+        for k, leaf in space.spaces.items():
+            _check_action(leaf, action[k], batch, f"{name}[{k!r}]")
+        return
+    if isinstance(space, spaces.Tuple):
+        if not isinstance(action, tuple | list) or len(action) != len(space.spaces):
+            raise InvalidAction(f"{name} {action!r} is not in the action space {space}: expected a tuple of "
+                                f"{len(space.spaces)}")
+        for i, (leaf, a) in enumerate(zip(space.spaces, action, strict=True)):
+            _check_action(leaf, a, batch, f"{name}[{i}]")
+        return
+    try:
+        problem = _leaf_problem(space, np.asarray(action), batch)
+    except (TypeError, ValueError) as e:  # not array-like (a ragged list)
+        problem = (f"not an array ({e})", None)
+    if problem is None:
+        return
+    reason, bad = problem
+    if not batch:
+        subject = f"{name} {action!r} is not in the action space {space}"
+    elif bad is None:
+        subject = f"{name} {action!r} are not {batch[0]} actions of the single action space {space}"
+    else:
+        subject = (f"{name} {action!r}: those of envs {np.flatnonzero(bad).tolist()} are not in the single "
+                   f"action space {space}")
+    raise InvalidAction(f"{subject}: {reason}")
+
+
 class ArenaEnv(gymnasium.Env):
     """One jarena arena as a Gymnasium environment (reset and step are jitted once per env).
 
@@ -114,7 +194,7 @@ class ArenaEnv(gymnasium.Env):
         self._action_dtypes = action_dtypes(arena)
         self._reset = jax.jit(arena.reset)
         self._step = jax.jit(arena.step)
-        self._state = None
+        self._state, self._ended = None, None
         self.metadata = dict(self.metadata, render_fps=1.0 / control_timestep(arena))  # real time
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -125,14 +205,21 @@ class ArenaEnv(gymnasium.Env):
         else:
             key = jax.random.key(int(self.np_random.integers(SEED_RANGE)))
         self._state, info = self._reset(key, self.params, episode)
+        self._ended = None
         info = jax.device_get(info)  # one transfer of everything the env returns
         return _observation(info.observation, self._key), _info(info)
 
     def step(self, action):
+        """Steps the arena; raises :class:`InvalidAction` for an action outside ``action_space``, and
+        ``ResetNeeded`` before the first ``reset()`` or after an episode ended without one."""
         if self._state is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
+        if self._ended is not None:
+            raise gymnasium.error.ResetNeeded(f"the episode ended ({self._ended}); call reset() before step()")
+        _check_action(self.action_space, action)
         self._state, info = self._step(self._state, cast_action(action, self._action_dtypes), self.params)
         info = jax.device_get(info)  # one transfer of everything the env returns
+        self._ended = "terminated" if info.terminated else "truncated" if info.truncated else None
         return (_observation(info.observation, self._key), float(info.reward), bool(info.terminated),
                 bool(info.truncated), _info(info))
 
@@ -190,8 +277,11 @@ class ArenaVectorEnv(VectorEnv):
         return _observation(info.observation, self._key), self._infos(info, None)
 
     def step(self, actions):
+        """Steps (and auto-resets) every arena; raises :class:`InvalidAction` if any env's action is outside
+        ``single_action_space``, and ``ResetNeeded`` before the first ``reset()``."""
         if self._state is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
+        _check_action(self.single_action_space, actions, (self.num_envs,), "actions")
         self._state, info = self._step(self._state, cast_action(actions, self._action_dtypes), self.params)
         info = jax.device_get(info)
         done = info.done

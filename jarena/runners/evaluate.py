@@ -142,8 +142,13 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
                                      mesh if count > 1 else None, jax.random.key_impl(key))
     with distributed.tracing_on(mesh):  # each device steps its own arenas (jarena.core.batching.batch_step)
         out = episodes_fn(np.asarray(jax.random.key_data(key)), agent_state, params, np.asarray(run_ids))
-    physics = out.pop("physics", None)  # stays on device: the renderer pulls only what it draws
-    out = jax.tree_util.tree_map(lambda x: x[: ids.size], distributed.fetch(out))
+    physics = out.pop("physics", None)  # on one process it stays on device: the renderer pulls only what it draws
+    out = jax.tree_util.tree_map(lambda x: x[: ids.size], distributed.fetch(out, f"{split} episodes"))
+    if physics is not None and jax.process_count() > 1:
+        # The collective part ends here. Every process takes a host copy of the filmed states (replicated: no
+        # data moves between processes), so that process 0 renders them alone without entering a computation
+        # over arrays that span the processes, which the others would never enter.
+        physics = distributed.fetch(physics, f"{split} filmed states")
     result = EvalResult(arena=arena.build_string or arena.name, agent=agent.name, split=split, episodes=ids,
                         returns=np.asarray(out["returns"]), lengths=np.asarray(out["lengths"]),
                         successes=np.asarray(out["successes"]),
