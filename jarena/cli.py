@@ -452,7 +452,7 @@ def _run(args) -> int:
         return args.fn(args)
     except termination.Terminated:
         # a multi-process run: tell the others and leave without JAX's shutdown barrier (they may be gone)
-        watchdog.fail("received SIGTERM; what was saved is kept", termination.EXIT_STATUS)
+        watchdog.fail("it received SIGTERM", termination.EXIT_STATUS)
         print("jarena: stopped: received SIGTERM; what was saved is kept (a training run with a run directory "
               "resumes from its last checkpoint when started again with the same command)", file=sys.stderr,
               flush=True)

@@ -227,8 +227,8 @@ class Watchdog:
             if self._failing:
                 return
             self._failing = True
-        if termination.received():  # this process was told to stop too: it ends as terminated
-            status, state = termination.EXIT_STATUS, "terminated"
+        if termination.received():  # this process was told to stop: that is why it ends, whatever else it saw
+            status, state, problem = termination.EXIT_STATUS, "terminated", "it received SIGTERM"
         self.record.state, self.record.message = state, problem
         self._publish()
         print(f"jarena: process {self.process} of {self.processes} stops: {problem}. The run cannot go on; "
