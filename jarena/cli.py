@@ -450,13 +450,14 @@ def _run(args) -> int:
 
     try:
         return args.fn(args)
-    except termination.Terminated:
+    except (termination.Terminated, KeyboardInterrupt) as e:
+        why, status = (("received SIGTERM", termination.EXIT_STATUS) if isinstance(e, termination.Terminated)
+                       else ("interrupted", 130))
         # a multi-process run: tell the others and leave without JAX's shutdown barrier (they may be gone)
-        watchdog.fail("it received SIGTERM", termination.EXIT_STATUS)
-        print("jarena: stopped: received SIGTERM; what was saved is kept (a training run with a run directory "
-              "resumes from its last checkpoint when started again with the same command)", file=sys.stderr,
-              flush=True)
-        return termination.EXIT_STATUS
+        watchdog.fail(f"it {why}" if why.startswith("received") else f"it was {why}", status)
+        print(f"jarena: stopped: {why}; what was saved is kept (a training run with a run directory resumes from "
+              "its last checkpoint when started again with the same command)", file=sys.stderr, flush=True)
+        return status
     except (ValueError, KeyError, FileNotFoundError) as e:
         print(f"jarena: error: {e}", file=sys.stderr, flush=True)
         watchdog.crashed(e, 2)  # a multi-process run: the others stop at once

@@ -111,7 +111,7 @@ class Watchdog:
         self._seen: dict[int, tuple[int, float]] = {}  # process -> (beat, my time it last changed)
         self._points: dict[int, tuple[int, float]] = {}  # process -> (point, my time it last changed)
         self._others: dict[int, _Record] = {}
-        self._last_round = time.monotonic()
+        self._last_round = self._entered = time.monotonic()
         self._stopped = False
         self._failing = False
 
@@ -121,6 +121,7 @@ class Watchdog:
         with self._lock:
             self.record.point += 1
             self.record.name, self.record.fingerprint = name, fingerprint
+            self._entered = time.monotonic()
         self._publish()
 
     def set_state(self, state: str, message: str = "") -> None:
@@ -190,16 +191,14 @@ class Watchdog:
 
     def _problem(self, now: float) -> str | None:
         """What is wrong with the run from this process's view, or ``None``."""
+        for p, other in self._others.items():  # when each process's heartbeat and point last changed, by my clock
+            if self._seen.get(p, (None,))[0] != other.beat:
+                self._seen[p] = (other.beat, now)
+            if self._points.get(p, (None,))[0] != other.point:
+                self._points[p] = (other.point, now)
         mine = self.record
         for p, other in sorted(self._others.items()):
-            beat, since = self._seen.get(p, (None, now))
-            if other.beat != beat:
-                self._seen[p] = (other.beat, now)
-                since = now
-            point, point_since = self._points.get(p, (None, now))
-            if other.point != point:
-                self._points[p] = (other.point, now)
-                point_since = now
+            since, point_since = self._seen[p][1], self._points[p][1]
             if other.state in ("failed", "terminated"):
                 return f"process {p} {'was terminated' if other.state == 'terminated' else 'stopped'}: {other.message}"
             if other.state == "finished":
@@ -216,9 +215,10 @@ class Watchdog:
                 return (f"processes {self.process} and {p} entered collective point {mine.point} ({mine.name!r}) "
                         f"with different results to fetch ({mine.fingerprint} vs {other.fingerprint}): they would "
                         "wait on each other forever")
-            if mine.state == "running" and other.point < mine.point and now - point_since > self.limits.wait:
+            waited = now - max(point_since, self._entered)  # since both were where they are now
+            if mine.state == "running" and other.point < mine.point and waited > self.limits.wait:
                 return (f"process {p} has not reached collective point {mine.point} ({mine.name!r}) in "
-                        f"{now - point_since:.0f} s; it is still at point {other.point} ({other.name!r})")
+                        f"{waited:.0f} s; it is still at point {other.point} ({other.name!r})")
         return None
 
     def fail(self, problem: str, status: int = EXIT_STATUS, state: str = "failed") -> None:
@@ -235,7 +235,21 @@ class Watchdog:
         print(f"jarena: process {self.process} of {self.processes} stops: {problem}. The run cannot go on; "
               f"to resume it, {self.resume_hint}.", file=sys.stderr, flush=True)
         sys.stdout.flush()
+        if self.process == 0:
+            self._let_the_others_leave()
         os._exit(status)
+
+    def _let_the_others_leave(self) -> None:
+        """Process 0 hosts the coordination service: leaving at once would make JAX abort the processes still
+        connected to it (with its own message, not this one), so it waits, 10 s at most, until every other
+        process has gone silent (each stops too on seeing this one's record)."""
+        deadline = time.monotonic() + min(10.0, self.limits.heartbeat)
+        silent = 2.5 * self.limits.interval + 0.5
+        while time.monotonic() < deadline:
+            now = time.monotonic()
+            if all(now - self._seen.get(p, (None, now))[1] > silent for p in self._others):
+                return
+            time.sleep(self.limits.interval / 4)
 
     def crashed(self, error: BaseException, status: int = 1) -> None:
         """Ends this process after ``error`` in its main thread, naming the process that went missing if that is
@@ -289,6 +303,14 @@ def start(launch: Any, limits: Limits | None = None) -> Watchdog | None:
     _watchdog._publish()
     _watchdog.run()
     atexit.register(finish)  # runs before JAX's own shutdown, registered when jax was imported
+    previous_hook = sys.excepthook
+
+    def hook(kind, error, traceback):  # an uncaught error: the others learn of it at once (and why)
+        previous_hook(kind, error, traceback)
+        if _watchdog is not None and isinstance(error, Exception):
+            _watchdog.crashed(error, 1)
+
+    sys.excepthook = hook
     return _watchdog
 
 

@@ -60,6 +60,7 @@ def test_a_process_behind_at_a_collective_point_is_given_the_wait_limit():
     dog = _watchdog(Limits(heartbeat=60, wait=100))
     dog.enter("validation 3")
     dog.enter("checkpoint 4")
+    dog._entered = 0.0  # it reached point 2 at time 0
     for t in range(0, 100, 10):  # alive (beating), but stuck at point 1
         assert _see(dog, float(t), p1=_Record(beat=t, point=1, name="validation 3"),
                     p2=_Record(beat=t, point=2, name="checkpoint 4")) is None
@@ -67,6 +68,18 @@ def test_a_process_behind_at_a_collective_point_is_given_the_wait_limit():
                    p2=_Record(beat=101, point=2, name="checkpoint 4"))
     assert problem == ("process 1 has not reached collective point 2 ('checkpoint 4') in 101 s; it is still at "
                        "point 1 ('validation 3')")
+
+
+def test_the_wait_counts_from_when_this_process_got_ahead():
+    # both sat at point 1 for an hour (a long computation); this one moved on to point 2 a minute ago
+    dog = _watchdog(Limits(heartbeat=60, wait=100))
+    dog.enter("training chunk 1")
+    assert _see(dog, 0.0, p1=_Record(beat=0, point=1), p2=_Record(beat=0, point=1)) is None
+    dog.enter("training chunk 2")
+    dog._entered = 3600.0
+    assert _see(dog, 3660.0, p1=_Record(beat=3660, point=1), p2=_Record(beat=3660, point=2)) is None
+    assert "process 1 has not reached collective point 2" in _see(dog, 3701.0, p1=_Record(beat=3701, point=1),
+                                                                  p2=_Record(beat=3701, point=2))
 
 
 def test_processes_fetching_different_results_at_one_point_are_stopped_at_once():
@@ -108,13 +121,13 @@ def _free_port() -> int:
 
 class _Launch:
     """``jarena train ppo`` on classic cart-pole in two processes on localhost, with the command's defaults (1,024
-    steps per update: 20 chunks of one update, a checkpoint every 5, two eval videos)."""
+    steps per update: 10 chunks of one update, a checkpoint every 5, two eval videos)."""
 
     def __init__(self, run: Path, env: dict | None = None):
         port = _free_port()
         self.run, self.logs = run, [run.parent / f"{run.name}_{i}.log" for i in range(2)]
         env = dict(os.environ, JAX_PLATFORMS="cpu", **(env or {}))
-        command = [sys.executable, "-m", "jarena.cli", "train", "ppo", "classic|domain:cartpole", "--steps", "20480",
+        command = [sys.executable, "-m", "jarena.cli", "train", "ppo", "classic|domain:cartpole", "--steps", "10240",
                    "--no-progress", "--run-dir", str(run), "--coordinator", f"localhost:{port}",
                    "--num-processes", "2"]
         self.processes = []
@@ -126,6 +139,15 @@ class _Launch:
     def wait_for_checkpoint(self, step: int, timeout: float = 300) -> None:
         deadline = time.monotonic() + timeout
         while not (self.run / "checkpoints" / str(step)).is_dir():
+            assert time.monotonic() < deadline, self.output(0)[-3000:]
+            assert all(p.poll() is None for p in self.processes), self.output(0)[-3000:]
+            time.sleep(0.1)
+
+    def wait_for_rows(self, rows: int, timeout: float = 300) -> None:
+        """Until process 0's train.csv (rewritten atomically after every chunk) holds ``rows`` chunks."""
+        deadline = time.monotonic() + timeout
+        path = self.run / "train.csv"
+        while not (path.is_file() and len(path.read_text().strip().splitlines()) > rows):
             assert time.monotonic() < deadline, self.output(0)[-3000:]
             assert all(p.poll() is None for p in self.processes), self.output(0)[-3000:]
             time.sleep(0.1)
@@ -156,21 +178,22 @@ def test_a_killed_process_stops_the_others_sigterm_ends_all_and_the_run_resumes(
     assert f"the run resumes from its last checkpoint in {run / 'checkpoints'}" in stopped
 
     second = _Launch(run)  # the same command: resumes, then a scheduler's SIGTERM reaches both processes
-    second.wait_for_checkpoint(10)
+    second.wait_for_rows(7)
     for p in second.processes:
         p.send_signal(signal.SIGTERM)
     start = time.monotonic()
     assert second.wait(timeout=120) == [143, 143]
     assert time.monotonic() - start < 20
     assert "resuming from step 5120" in second.output(0)
+    assert sorted(os.listdir(run / "checkpoints")) == ["5"]
     assert "received SIGTERM" in second.output(0) and "received SIGTERM" in second.output(1)
 
     third = _Launch(run)  # and once more: it resumes from what the terminated run saved and finishes
     assert third.wait(timeout=600) == [0, 0], third.output(0)[-3000:]
-    assert "resuming from step 10240" in third.output(0)
+    assert "resuming from step 5120" in third.output(0)
     assert (run / "evaluation.json").is_file() and len(list((run / "videos").glob("eval_episode_*"))) == 2
     with open(run / "train.csv") as f:
-        assert len(f.read().strip().splitlines()) == 1 + 20
+        assert len(f.read().strip().splitlines()) == 1 + 10
 
 
 def test_a_stopped_process_makes_the_other_fail_within_the_heartbeat_limit(tmp_path):

@@ -178,7 +178,8 @@ def evaluate(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_
       max_steps: step cap (default: the arena's ``max_episode_steps``).
       videos: film the first ``videos`` episodes into ``video_dir/<split>_episode_<id>.mp4`` (the results
         are the same as without): the loop keeps their physics states on device, the frames are rendered
-        on the host afterwards. The arena must render (``jarena.render.can_render``).
+        on the host afterwards (in a multi-process run, by process 0 alone). The arena must render
+        (``jarena.render.can_render``).
       video_dir: folder for the videos (required with ``videos``).
       video_options: a :class:`jarena.render.VideoOptions` (frame size, camera, fps, format).
       devices: split the episodes over this many devices (:func:`jarena.distributed.mesh`: ``"all"``, a
@@ -190,11 +191,12 @@ def evaluate(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_
     if videos:
         if video_dir is None:
             raise ValueError("evaluate(videos=N) needs a video_dir to write the videos to")
-        check_video(arena, video_options, params, params_axis)  # fails before compiling if the arena cannot render
+        if distributed.is_main_process():  # the process that renders: fails before compiling if it cannot
+            check_video(arena, video_options, params, params_axis)
     result, physics = run_episodes(agent, arena, key, agent_state=agent_state, params=params,
                                    params_axis=params_axis, split=split, episodes=episodes, max_steps=max_steps,
                                    filmed=int(videos), devices=devices)
-    if videos:
+    if videos and distributed.is_main_process():  # in a multi-process run process 0 writes, from host copies
         paths = [Path(video_dir) / f"{split}_episode_{int(i)}" for i in result.episodes[: int(videos)]]
         write_episodes(arena, physics, result.lengths[: int(videos)], paths, video_options, params=params,
                        params_axis=params_axis)
