@@ -28,10 +28,25 @@ def cloth_demos(tmp_path_factory):
     return arena, path
 
 
-def _train(arena, path, steps, **config):
+def _info_of(arena, images):
+    """An info for a batch of the arena's rgb ``images``, every other field zeros (the BC policy reads only the
+    observation and the goal): its shapes are traced, not reset (a compiled crumpled reset costs seconds)."""
+    shapes = jax.eval_shape(lambda key: jarena.batch_reset(arena, key, len(images))[1], jax.random.key(0))
+    return jax.tree_util.tree_map(lambda s: np.zeros(s.shape, s.dtype), shapes).replace(
+        observation={"rgb": jnp.asarray(images)})
+
+
+def _train(arena, path, steps, evaluate=True, **config):
+    """BC trained for ``steps`` updates (in 20 chunks) and evaluated; without ``evaluate``, the run is given one
+    spare chunk and stopped before it, so it trains the same and skips the evaluation's compile (~15 s)."""
     agent = jarena_agents.build_agent("bc", {"dataset": path, "cnn": SMALL_CNN, "hidden": (64,), "batch_size": 32,
                                              "total_steps": steps, **config})
-    return agent, train_and_evaluate(agent, arena, jax.random.key(0), validate_every=0, progress=False)
+    if evaluate:
+        return agent, train_and_evaluate(agent, arena, jax.random.key(0), validate_every=0, progress=False)
+    chunk = steps // 20
+    assert chunk * 20 == steps
+    return agent, train_and_evaluate(agent, arena, jax.random.key(0), total_steps=steps + chunk, chunk_updates=chunk,
+                                     stop_after_chunks=20, validate_every=0, progress=False)
 
 
 def test_bc_learns_the_pick_and_place_from_the_image_alone(cloth_demos):
@@ -47,10 +62,7 @@ def test_bc_learns_the_pick_and_place_from_the_image_alone(cloth_demos):
     # each action's observation
     rows = np.concatenate([s + np.arange(n) for s, n in zip(starts, host["lengths"], strict=True)])
     policy = agent.policy(result.train_state, arena.spec, True)
-    _, info = jarena.batch_reset(arena, jax.random.key(0), 1)
-    info = info.replace(observation={"rgb": jnp.asarray(host["data"]["observation"]["rgb"][rows])},
-                        goal=jax.tree_util.tree_map(lambda g: jnp.zeros((len(rows),) + g.shape[1:], g.dtype),
-                                                    info.goal))
+    info = _info_of(arena, host["data"]["observation"]["rgb"][rows])
     predicted, _ = jax.jit(agent.act)(policy, info, jax.random.key(2))
     mse = float(np.mean(np.sum((np.asarray(predicted) - actions) ** 2, -1)))
     constant = float(np.mean(np.sum((actions - actions.mean(0)) ** 2, -1)))
@@ -61,17 +73,22 @@ def test_bc_learns_the_pick_and_place_from_the_image_alone(cloth_demos):
 
 def test_mixture_policy_keypoints_and_rotate90_augmentation_train_and_act(cloth_demos):
     arena, path = cloth_demos
-    agent, result = _train(arena, path, 60, policy="mixture", components=3, augment="rotate90",
+    # trained, not evaluated (this test acts itself, below)
+    agent, result = _train(arena, path, 60, evaluate=False, policy="mixture", components=3, augment="rotate90",
                            cnn_output="spatial_softmax", cnn_padding="SAME")
+    assert len(result.history) == 20
     assert result.train_state.params["params"]["mlp"]["Dense_0"]["kernel"].shape[0] == 2 * SMALL_CNN[-1][0]
     losses = [h["loss"] for h in result.history]
     assert np.isfinite(losses).all() and losses[-1] < losses[0]
-    _, info = jarena.batch_reset(arena, jax.random.key(1), 5)
+    # five of the demonstrations' camera images (run op by op, the reset and the network dispatch hundreds of
+    # small programs; compiled, each is one)
+    info = _info_of(arena, read_dataset(path, arena, 1)["data"]["observation"]["rgb"][:5])
+    act = jax.jit(agent.act)
     for deterministic in (True, False):
-        action, _ = agent.act(agent.policy(result.train_state, arena.spec, deterministic), info, jax.random.key(2))
+        action, _ = act(agent.policy(result.train_state, arena.spec, deterministic), info, jax.random.key(2))
         assert action.shape == (5, 4) and bool(jnp.all(jnp.abs(action) <= 1.0))
-    again, _ = agent.act(agent.policy(result.train_state, arena.spec, True), info, jax.random.key(7))
-    first, _ = agent.act(agent.policy(result.train_state, arena.spec, True), info, jax.random.key(2))
+    again, _ = act(agent.policy(result.train_state, arena.spec, True), info, jax.random.key(7))
+    first, _ = act(agent.policy(result.train_state, arena.spec, True), info, jax.random.key(2))
     np.testing.assert_array_equal(first, again)  # eval mode: the most probable component's mean, no noise
 
 

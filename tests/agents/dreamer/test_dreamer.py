@@ -14,11 +14,27 @@ from jarena_agents.dreamer.agent import bounded_normal
 TINY = dict(num_arenas=2, rollout_length=5, train_steps=2, batch_size=2, sequence_length=4, buffer_size=2 * 40,
             learning_starts=20, total_steps=40, deter=8, stoch=2, classes=3, hidden=8, layers=1, bins=11,
             imagination_horizon=3)
+# The tiny agent's programs run a few small steps: XLA's CPU code optimisation costs far more than it saves there
+# (its training chunk: 16 s -> 6 s to compile). The learning test compiles as usual.
+FAST_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True,
+                "xla_cpu_use_fusion_emitters": False}
 
 
 @pytest.fixture(scope="module")
 def pendulum():
     return jarena.build_arena("classic|domain:pendulum")
+
+
+@pytest.fixture(scope="module")
+def agent():
+    return jarena_agents.build_agent("dreamer", TINY)
+
+
+@pytest.fixture(scope="module")
+def compiled(agent):
+    """The tiny agent's jitted ``init_training`` and ``train``, shared by the tests (one compilation each)."""
+    return (jax.jit(agent.init_training, static_argnums=1, compiler_options=FAST_COMPILE),
+            jax.jit(agent.train, static_argnums=(1, 2), compiler_options=FAST_COMPILE))
 
 
 def test_the_bounded_normal_stays_in_its_ranges():
@@ -29,26 +45,27 @@ def test_the_bounded_normal_stays_in_its_ranges():
     assert bool(jnp.all(jnp.abs(samples) <= 1.0))
 
 
-def test_acting_and_a_policy_for_any_batch(pendulum):
-    agent = jarena_agents.build_agent("dreamer", TINY)
-    state = agent.init(jax.random.key(0), pendulum.spec, 3)
-    _, info = jarena.batch_reset(pendulum, jax.random.key(1), 3)
-    action, state = jax.jit(agent.act)(state, info, jax.random.key(2))
+def test_acting_and_a_policy_for_any_batch(agent, compiled, pendulum):
+    # init, reset and act each as one program: op by op they compile hundreds of small ones
+    state = jax.jit(lambda key: agent.init(key, pendulum.spec, 3), compiler_options=FAST_COMPILE)(jax.random.key(0))
+    _, info = jax.jit(lambda key: jarena.batch_reset(pendulum, key, 3))(jax.random.key(1))
+    action, state = jax.jit(agent.act, compiler_options=FAST_COMPILE)(state, info, jax.random.key(2))
     assert action.shape == (3, 1) and bool(jnp.all(jnp.abs(action) <= 2.0))
     np.testing.assert_allclose(state.memory.previous_action, action)  # the model sees the arena's actions
-    ts = jax.jit(agent.init_training, static_argnums=1)(jax.random.key(0), pendulum)
+    init, _ = compiled
+    ts = init(jax.random.key(0), pendulum)
     policy = agent.policy(ts, pendulum.spec, True)
     result = evaluate(agent, pendulum, jax.random.key(0), agent_state=policy, episodes=np.arange(3), max_steps=5)
     assert np.all(np.isfinite(result.returns))
-    a, _ = agent.act(agent.batch_state(policy, 2), jax.tree_util.tree_map(lambda x: x[:2], info), jax.random.key(3))
-    b, _ = agent.act(agent.batch_state(policy, 2), jax.tree_util.tree_map(lambda x: x[:2], info), jax.random.key(4))
+    act_two = jax.jit(lambda policy, info, key: agent.act(agent.batch_state(policy, 2),
+                                                         jax.tree_util.tree_map(lambda x: x[:2], info), key)[0],
+                      compiler_options=FAST_COMPILE)
+    a, b = act_two(policy, info, jax.random.key(3)), act_two(policy, info, jax.random.key(4))
     np.testing.assert_array_equal(a, b)  # deterministic: the actor's mode
 
 
-def test_training_trains_model_actor_and_critic_and_resumes_bit_for_bit(pendulum):
-    agent = jarena_agents.build_agent("dreamer", TINY)
-    init = jax.jit(agent.init_training, static_argnums=1)
-    train = jax.jit(agent.train, static_argnums=(1, 2))
+def test_training_trains_model_actor_and_critic_and_resumes_bit_for_bit(compiled, pendulum):
+    init, train = compiled
     ts = init(jax.random.key(0), pendulum)
     whole, metrics = train(ts, pendulum, 4)
     assert float(metrics["model_loss"][0]) == 0.0 and np.all(np.asarray(metrics["model_loss"][1:]) > 0)

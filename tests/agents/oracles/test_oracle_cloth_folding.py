@@ -12,6 +12,7 @@ from jarena_agents.config import ConfigError
 from jarena_agents.oracles import cloth_actions
 from jarena_agents.oracles.cloth_folding import flat_pose, floor_layer
 from jarena_agents.registry import build_agent
+from tests.arenas.cloth.episodes import Episodes
 
 ANALYTIC = {"lookahead": False}
 
@@ -28,20 +29,24 @@ def _arena(task: str, tool: str = "pixel_pick_and_place(1)", initial: str = "fla
 @pytest.mark.parametrize("task", ["side_fold", "diagonal_fold", "one_corner_inward"])
 def test_the_flat_pose_under_a_goal_is_the_cloth_it_folds(task):
     arena = _arena(task)
-    state, info = arena.reset(episode=3)
-    physics = arena.privileged(state).physics
-    goal = info.goal.reshape(-1, 3)
-    floor = np.asarray(floor_layer(goal, physics.mesh))
+
+    @jax.jit  # one program (op by op, the reset and the poses dispatch hundreds of small ones)
+    def poses():
+        state, info = arena.reset(episode=3)
+        physics = arena.privileged(state).physics
+        goal = info.goal.reshape(-1, 3)
+        return floor_layer(goal, physics.mesh), flat_pose(goal, physics.mesh), physics.positions[:, :2]
+
+    floor, pose, positions = (np.asarray(x) for x in poses())
     assert 0.5 <= floor.mean() < 1.0  # the folded side is lifted, the rest stays
-    np.testing.assert_allclose(np.asarray(flat_pose(goal, physics.mesh)), np.asarray(physics.positions[:, :2]),
-                               atol=1e-4)
+    np.testing.assert_allclose(pose, positions, atol=1e-4)
 
 
 def test_the_oracle_folds_a_flat_cloth_closer_than_random():
-    arena = _arena("side_fold")
-    episodes = list(range(4))
-    oracle = jarena.evaluate(build_agent("oracle_cloth_folding", ANALYTIC), arena, episodes=episodes)
-    random = jarena.evaluate(build_agent("random"), arena, jax.random.key(0), episodes=episodes)
+    # evaluate's loop on episodes 0-3 for both agents, their reset and step compiled once for both
+    episodes = Episodes(_arena("side_fold"), range(4))
+    oracle = episodes.run(build_agent("oracle_cloth_folding", ANALYTIC))
+    random = episodes.run(build_agent("random"), jax.random.key(0))
     folded = np.asarray(oracle.metrics["normalised_fold_distance"])
     assert folded.max() < 0.8, folded  # 1: the unfolded cloth
     assert folded.mean() < np.asarray(random.metrics["normalised_fold_distance"]).mean() - 0.2
@@ -102,9 +107,14 @@ def test_the_lookahead_takes_the_fold_that_ends_nearest_the_goal():
         def reward(start, a):
             return model.step(start, a)[1]
 
-        return cloth_actions.each_score(privileged, tried, reward), jax.vmap(reward)(privileged, taken)
+        return tried, taken, cloth_actions.each_score(privileged, tried, reward)
 
-    tried, taken = (np.asarray(x) for x in check(jnp.arange(2)))
+    actions, action, tried = (np.asarray(x) for x in check(jnp.arange(2)))
+    # the taken fold's reward: that of the proposal it is (the proposals' rewards are computed as the oracle
+    # computes them, which XLA compiles once; stepping the taken folds apart would compile the step again)
+    same = (actions == action[:, None]).all(-1)
+    assert same.any(-1).all(), (action, actions)  # the taken fold is one of the proposals
+    taken = tried[np.arange(2), same.argmax(-1)]
     assert tried.shape == (2, 2 + 21 * 2)
     for i in range(2):
         assert len(np.unique(tried[i])) > 3, tried[i]  # the proposals differ
@@ -124,11 +134,17 @@ def test_fold_proposals_move_each_edge_handle_toward_its_goal_and_lift_floor_han
 
     mesh = ClothMesh(rows=12, cols=12, spacing=0.03)
     flat = jnp.asarray(mesh.rest_positions, jnp.float32) + jnp.array([0.02, -0.01, 0.4 * mesh.spacing])
-    goal = folded_goals(mesh, "side_fold", flat)[0]
-    tried = np.asarray(fold_proposals(flat, goal, mesh, 1, "world", (0.5, 1.0))) * WORKSPACE_HALF_WIDTH
+
+    @jax.jit  # one program (op by op, the goal and the proposals dispatch hundreds of small ones)
+    def fold(flat):
+        goal = folded_goals(mesh, "side_fold", flat)[0]
+        return goal, fold_proposals(flat, goal, mesh, 1, "world", (0.5, 1.0)), floor_layer(goal, mesh)
+
+    goal, tried, floor = fold(flat)
+    tried = np.asarray(tried) * WORKSPACE_HALF_WIDTH
     assert tried.shape == (2 + 21 * 2, 4)
     edges = cloth_actions.edge_handles(mesh)
-    on_floor = np.asarray(floor_layer(goal, mesh))[edges]
+    on_floor = np.asarray(floor)[edges]
     assert 0 < on_floor.sum() < 16, on_floor  # a side fold leaves about half its edge handles on the floor
     start, end = np.asarray(flat)[edges, :2], np.asarray(goal)[edges, :2]
     for k, f in enumerate((0.5, 1.0)):

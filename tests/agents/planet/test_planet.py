@@ -13,6 +13,10 @@ from jarena.runners.evaluate import evaluate
 TINY = dict(num_arenas=2, rollout_length=5, train_steps=2, batch_size=2, sequence_length=4, buffer_size=2 * 40,
             learning_starts=20, total_steps=40, deter=8, stoch=2, classes=3, hidden=8, layers=1, bins=11,
             horizon=3, samples=8, iterations=2)
+# The tiny agent's programs run a few small steps: XLA's CPU code optimisation costs far more than it saves there.
+# The learning test compiles as usual.
+FAST_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True,
+                "xla_cpu_use_fusion_emitters": False}
 
 
 @pytest.fixture(scope="module")
@@ -25,6 +29,22 @@ def agent():
     return jarena_agents.build_agent("planet", TINY)
 
 
+def compiled(agent):
+    """``agent``'s jitted ``init_training`` and ``train``."""
+    return (jax.jit(agent.init_training, static_argnums=1, compiler_options=FAST_COMPILE),
+            jax.jit(agent.train, static_argnums=(1, 2), compiler_options=FAST_COMPILE))
+
+
+@pytest.fixture(scope="module")
+def trained(agent, pendulum):
+    """The tiny agent's jitted functions, its initial train state and that state after 4 updates, with their
+    metrics: shared by the tests (one compilation and one run)."""
+    init, train = compiled(agent)
+    ts = init(jax.random.key(0), pendulum)
+    whole, metrics = train(ts, pendulum, 4)
+    return init, train, ts, whole, metrics
+
+
 def test_config_errors_name_the_problem():
     with pytest.raises(ValueError, match="buffer_size=41 must be a multiple of num_arenas=2"):
         jarena_agents.build_agent("planet", {**TINY, "buffer_size": 41})
@@ -32,28 +52,27 @@ def test_config_errors_name_the_problem():
         jarena_agents.build_agent("planet", {**TINY, "sequence_length": 50})
 
 
-def test_replay_ratio_sets_the_gradient_steps(pendulum):
-    # DreamerV3's train ratio: 2.4 replayed steps per agent step = 2.4 * (2 x 5) / (2 x 4) = 3 gradient steps
-    by_ratio = jarena_agents.build_agent("planet", {**TINY, "replay_ratio": 2.4})
-    assert by_ratio.settings.gradient_steps == 3
-    assert jarena_agents.build_agent("planet", TINY).settings.gradient_steps == 2  # train_steps without a ratio
-
-    def trained(agent):
-        ts = jax.jit(agent.init_training, static_argnums=1)(jax.random.key(0), pendulum)
-        return jax.jit(agent.train, static_argnums=(1, 2))(ts, pendulum, 4)[0].params
-
-    same = jax.tree_util.tree_map(np.array_equal, trained(by_ratio),
-                                  trained(jarena_agents.build_agent("planet", {**TINY, "train_steps": 3})))
-    assert all(jax.tree_util.tree_leaves(same))  # exactly as three gradient steps per update
+def test_replay_ratio_sets_the_gradient_steps(pendulum, trained):
+    # DreamerV3's train ratio: 1.6 replayed steps per agent step = 1.6 * (2 x 5) / (2 x 4) = 2 gradient steps,
+    # whatever train_steps says
+    by_ratio = jarena_agents.build_agent("planet", {**TINY, "train_steps": 1, "replay_ratio": 1.6})
+    assert by_ratio.settings.gradient_steps == 2
+    assert jarena_agents.build_agent("planet", {**TINY, "train_steps": 1}).settings.gradient_steps == 1  # no ratio
+    init, train = compiled(by_ratio)
+    params = train(init(jax.random.key(0), pendulum), pendulum, 4)[0].params
+    _, _, _, two_steps, _ = trained  # TINY: train_steps=2
+    same = jax.tree_util.tree_map(np.array_equal, params, two_steps.params)
+    assert all(jax.tree_util.tree_leaves(same))  # exactly as two gradient steps per update
     with pytest.raises(ValueError, match=r"replay_ratio=0.1 gives less than one gradient step per update .* "
                                          r"use replay_ratio >= 0.4"):
         jarena_agents.build_agent("planet", {**TINY, "replay_ratio": 0.1})
 
 
 def test_acting_filters_the_belief_and_restarts_it_with_each_episode(agent, pendulum):
-    state = agent.init(jax.random.key(0), pendulum.spec, 3)
-    arena_state, info = jarena.batch_reset(pendulum, jax.random.key(1), 3)
-    act = jax.jit(agent.act)
+    # init, reset, step and act each as one program: op by op they compile hundreds of small ones
+    state = jax.jit(lambda key: agent.init(key, pendulum.spec, 3), compiler_options=FAST_COMPILE)(jax.random.key(0))
+    arena_state, info = jax.jit(lambda key: jarena.batch_reset(pendulum, key, 3))(jax.random.key(1))
+    act = jax.jit(agent.act, compiler_options=FAST_COMPILE)
     action, state1 = act(state, info, jax.random.key(2))
     assert action.shape == (3, 1) and bool(jnp.all(jnp.abs(action) <= 2.0))
     np.testing.assert_allclose(state1.memory.previous_action, action)
@@ -61,39 +80,37 @@ def test_acting_filters_the_belief_and_restarts_it_with_each_episode(agent, pend
     _, again = act(state1, info, jax.random.key(2))
     np.testing.assert_allclose(again.memory.latent.stoch, state1.memory.latent.stoch, atol=1e-6)
     # mid-episode, the belief carries the past
-    _, info2 = jarena.batch_step(pendulum, arena_state, action)
+    _, info2 = jax.jit(lambda state, action: jarena.batch_step(pendulum, state, action))(arena_state, action)
     _, state2 = act(state1, info2, jax.random.key(3))
     _, alone = act(state, info2.replace(step=jnp.zeros_like(info2.step)), jax.random.key(3))
     assert not np.allclose(state2.memory.latent.deter, 0.0)  # the first step's belief went into the GRU
     np.testing.assert_array_equal(alone.memory.latent.deter, 0.0)  # which a restarted belief does not have
-    reset = agent.reset(state2, jnp.array([True, False, False]))
+    reset = jax.jit(agent.reset)(state2, jnp.array([True, False, False]))
     np.testing.assert_array_equal(reset.memory.latent.deter[0], 0.0)
     np.testing.assert_array_equal(reset.memory.latent.deter[1:], state2.memory.latent.deter[1:])
 
 
-def test_deterministic_acting_is_reproducible_on_any_batch(agent, pendulum):
-    ts = jax.jit(agent.init_training, static_argnums=1)(jax.random.key(0), pendulum)
+def test_deterministic_acting_is_reproducible_on_any_batch(agent, pendulum, trained):
+    _, _, ts, _, _ = trained
     policy = agent.policy(ts, pendulum.spec, True)
     assert policy.memory is None  # allocated for the runner's batch
-    _, info = jarena.batch_reset(pendulum, jax.random.key(1), 4)
+    _, info = jax.jit(lambda key: jarena.batch_reset(pendulum, key, 4))(jax.random.key(1))
     big = agent.batch_state(policy, 4)
     small = agent.batch_state(policy, 1)
     assert agent.batch_state(big, 4) is big
-    a4, _ = agent.act(big, info, jax.random.key(5))
-    a1, _ = agent.act(small, jax.tree_util.tree_map(lambda x: x[2:3], info), jax.random.key(5))
+    act = jax.jit(agent.act, compiler_options=FAST_COMPILE)  # one program per batch size, not op by op
+    a4, _ = act(big, info, jax.random.key(5))
+    a1, _ = act(small, jax.tree_util.tree_map(lambda x: x[2:3], info), jax.random.key(5))
     # CEM draws per arena from split keys, so compare a batch with itself under the same key
-    again, _ = agent.act(big, info, jax.random.key(5))
+    again, _ = act(big, info, jax.random.key(5))
     np.testing.assert_array_equal(a4, again)
     assert a1.shape == (1, 1)
     result = evaluate(agent, pendulum, jax.random.key(0), agent_state=policy, episodes=np.arange(3), max_steps=5)
     assert result.returns.shape == (3,) and np.all(np.isfinite(result.returns))
 
 
-def test_training_learns_the_model_online_and_resumes_bit_for_bit(agent, pendulum):
-    init = jax.jit(agent.init_training, static_argnums=1)
-    train = jax.jit(agent.train, static_argnums=(1, 2))
-    ts = init(jax.random.key(0), pendulum)
-    whole, metrics = train(ts, pendulum, 4)
+def test_training_learns_the_model_online_and_resumes_bit_for_bit(pendulum, trained):
+    init, train, ts, whole, metrics = trained
     assert int(whole.env_steps) == 40 and int(whole.update) == 4
     losses = np.asarray(metrics["model_loss"])
     assert losses[0] == 0.0 and np.all(losses[1:] > 0.0)  # the model trains once learning_starts is reached

@@ -1,6 +1,8 @@
 """The world model: its loss on tiny inputs, the sequence layout, resets, determinism, images, and that a tiny
 model learns classic pendulum's dynamics and rewards well enough to plan over."""
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -24,6 +26,7 @@ def pendulum():
     return jarena.build_arena("classic|domain:pendulum")
 
 
+@functools.partial(jax.jit, static_argnums=(0, 2, 3))  # one program, not op by op (slow to compile on CPU)
 def random_transitions(arena, key, arenas, steps):
     """(steps, arenas) transitions of uniformly random actions."""
     state, info = jarena.batch_reset(arena, key, arenas)
@@ -40,14 +43,20 @@ def random_transitions(arena, key, arenas, steps):
 def windows(arena, key, arenas, steps, length, count):
     buffer = jarena.data.make_buffer(num_arenas=arenas, capacity=arenas * steps, sample_batch_size=count,
                                      mode="window", length=length)
-    state = buffer.add(buffer.init(jarena.data.experience_spec(arena)), random_transitions(arena, key, arenas, steps))
-    return buffer, state
+    fill = jax.jit(lambda key: buffer.add(buffer.init(jarena.data.experience_spec(arena)),
+                                          random_transitions(arena, key, arenas, steps)))
+    return buffer, fill(key)
+
+
+def init_params(model, key):
+    """The model's parameters, initialised as one program (op by op, flax's initialisers compile hundreds)."""
+    return jax.jit(lambda key: wm.init_params(model, key))(key)
 
 
 def test_sequences_from_windows_lay_out_steps(pendulum):
     transitions = random_transitions(pendulum, jax.random.key(0), 2, 3)
     experience = jax.tree_util.tree_map(lambda x: jnp.swapaxes(x, 0, 1), transitions)  # (B=2, L=3)
-    seq = wm.sequences_from_windows(pendulum.spec, experience)
+    seq = jax.jit(lambda e: wm.sequences_from_windows(pendulum.spec, e))(experience)
     assert seq.vector.shape == (2, 4, 3) and seq.action.shape == (2, 4, 1)
     np.testing.assert_array_equal(seq.vector[:, 0], experience.observation["state"][:, 0])
     np.testing.assert_array_equal(seq.vector[:, 1:], experience.next_observation["state"])
@@ -63,40 +72,52 @@ def test_loss_at_initialisation_matches_hand_values(pendulum):
     """The zero-initialised reward head predicts a uniform two-hot: its loss is log(255) whatever the rewards;
     the KL terms never fall below the free nats; the total is the weighted sum of the terms."""
     model = wm.make_world_model(pendulum.spec, TINY)
-    params = wm.init_params(model, jax.random.key(0))
+    params = init_params(model, jax.random.key(0))
     experience = jax.tree_util.tree_map(lambda x: jnp.swapaxes(x, 0, 1),
                                         random_transitions(pendulum, jax.random.key(1), 3, 5))
-    seq = wm.sequences_from_windows(pendulum.spec, experience)
-    total, (metrics, latents) = wm.loss(model, params, seq, jax.random.key(2))
+
+    @jax.jit
+    def loss(params, experience, key):
+        seq = wm.sequences_from_windows(pendulum.spec, experience)
+        total, (metrics, latents) = wm.loss(model, params, seq, key)
+        return total, metrics, latents, wm.predict_reward(model, params, latents)
+
+    total, metrics, latents, predicted = loss(params, experience, jax.random.key(2))
     np.testing.assert_allclose(metrics["reward_loss"], np.log(255), rtol=1e-5)
     assert metrics["dyn_loss"] >= 1.0 and metrics["rep_loss"] >= 1.0
     expected = (metrics["observation_loss"] + metrics["reward_loss"] + metrics["continue_loss"]
                 + 0.5 * metrics["dyn_loss"] + 0.1 * metrics["rep_loss"])
     np.testing.assert_allclose(total, expected, rtol=1e-6)
-    np.testing.assert_allclose(wm.predict_reward(model, params, latents), 0.0, atol=1e-5)
+    np.testing.assert_allclose(predicted, 0.0, atol=1e-5)
     assert latents.deter.shape == (3, 6, 16) and latents.stoch.shape == (3, 6, 4, 4)
 
 
 def test_observing_restarts_where_is_first(pendulum):
     """A sequence flagged ``is_first`` at step 3 gives, from there on, the latents of that tail observed alone."""
     model = wm.make_world_model(pendulum.spec, TINY)
-    params = wm.init_params(model, jax.random.key(0))
+    params = init_params(model, jax.random.key(0))
     experience = jax.tree_util.tree_map(lambda x: jnp.swapaxes(x, 0, 1),
                                         random_transitions(pendulum, jax.random.key(1), 2, 7))
-    seq = wm.sequences_from_windows(pendulum.spec, experience)
-    seq = seq.replace(is_first=seq.is_first.at[:, 3].set(True))
-    whole, _, _ = wm.observe(model, params, seq, None)
-    tail, _, _ = wm.observe(model, params, jax.tree_util.tree_map(lambda x: x[:, 3:], seq), None)
+
+    @jax.jit
+    def whole_and_tail(params, experience):
+        seq = wm.sequences_from_windows(pendulum.spec, experience)
+        seq = seq.replace(is_first=seq.is_first.at[:, 3].set(True))
+        whole, _, _ = wm.observe(model, params, seq, None)
+        tail, _, _ = wm.observe(model, params, jax.tree_util.tree_map(lambda x: x[:, 3:], seq), None)
+        return whole, tail
+
+    whole, tail = whole_and_tail(params, experience)
     np.testing.assert_allclose(whole.deter[:, 3:], tail.deter, atol=1e-6)
     np.testing.assert_allclose(whole.stoch[:, 3:], tail.stoch, atol=1e-6)
 
 
 def test_same_key_same_result_on_any_batch_size(pendulum):
     model = wm.make_world_model(pendulum.spec, TINY)
-    params = wm.init_params(model, jax.random.key(0))
+    params = init_params(model, jax.random.key(0))
     experience = jax.tree_util.tree_map(lambda x: jnp.swapaxes(x, 0, 1),
                                         random_transitions(pendulum, jax.random.key(1), 4, 5))
-    seq = wm.sequences_from_windows(pendulum.spec, experience)
+    seq = jax.jit(lambda e: wm.sequences_from_windows(pendulum.spec, e))(experience)
     observe = jax.jit(lambda p, s: wm.observe(model, p, s, None)[0])
     whole = observe(params, seq)
     one = observe(params, jax.tree_util.tree_map(lambda x: x[2:3], seq))
@@ -110,9 +131,8 @@ def test_images_are_encoded_and_decoded():
     config = wm.WorldModelConfig(deter=8, stoch=2, classes=2, hidden=8, layers=1, cnn_depth=2, cnn_layers=2, bins=5)
     model = wm.make_world_model(arena.spec, config)
     assert model.images == ("pixels",) and model.vector_size == 0
-    params = wm.init_params(model, jax.random.key(0))
-    latent = model.initial((3,))
-    vector, images = wm.decode(model, params, latent)
+    vector, images = jax.jit(lambda key: wm.decode(model, wm.init_params(model, key), model.initial((3,))))(
+        jax.random.key(0))
     assert vector is None and images["pixels"].shape == (3, 16, 16, 3)
     with pytest.raises(ConfigError, match="sides must divide by 32"):
         wm.make_world_model(arena.spec, wm.WorldModelConfig(cnn_layers=5))
@@ -128,7 +148,7 @@ def test_a_tiny_model_learns_pendulum_well_enough_to_plan(pendulum):
                                           length=24)
     model = wm.make_world_model(pendulum.spec, SMALL)
     optimizer = wm.model_optimizer(SMALL)
-    params = wm.init_params(model, jax.random.key(2))
+    params = init_params(model, jax.random.key(2))
 
     @jax.jit
     def train(params, opt_state, key):
@@ -146,27 +166,33 @@ def test_a_tiny_model_learns_pendulum_well_enough_to_plan(pendulum):
     (params, _), losses = train(params, optimizer.init(params), jax.random.key(3))
     assert losses[-100:].mean() < 0.5 * losses[:10].mean()
 
-    seq = wm.sequences_from_windows(pendulum.spec, test_buffer.sample(held_out, jax.random.key(4)).experience)
-    context = jax.tree_util.tree_map(lambda x: x[:, :8], seq)
-    latents, _, _ = wm.observe(model, params, context, None)
-    start = jax.tree_util.tree_map(lambda x: x[:, -1], latents)
-    imagined = wm.imagine(model, params, start, seq.action[:, 8:], None)
-    vector, _ = wm.decode(model, params, imagined)
-    error = float(jnp.mean(jnp.abs(vector - seq.vector[:, 8:])))
-    hold = float(jnp.mean(jnp.abs(seq.vector[:, 7:8] - seq.vector[:, 8:])))
-    assert error < 0.5 * hold, (error, hold)
-    reward_error = float(jnp.mean(jnp.abs(wm.predict_reward(model, params, imagined) - seq.reward[:, 8:])))
-    reward_hold = float(jnp.mean(jnp.abs(seq.reward[:, 7:8] - seq.reward[:, 8:])))
-    assert reward_error < reward_hold / 3, (reward_error, reward_hold)
-
-    learned = wm.latent_model(model, params)
     cfg = CEMConfig(samples=64, horizon=10, iterations=3)
-    one = jax.tree_util.tree_map(lambda x: x[0], start)
-    plan = jax.jit(cem_improve(learned, cfg))(one, jnp.zeros((10, 1)), jax.random.key(5))
+
+    @jax.jit  # the checks below as one program: op by op they compile hundreds
+    def open_loop_and_plans(params):
+        seq = wm.sequences_from_windows(pendulum.spec, test_buffer.sample(held_out, jax.random.key(4)).experience)
+        context = jax.tree_util.tree_map(lambda x: x[:, :8], seq)
+        latents, _, _ = wm.observe(model, params, context, None)
+        start = jax.tree_util.tree_map(lambda x: x[:, -1], latents)
+        imagined = wm.imagine(model, params, start, seq.action[:, 8:], None)
+        vector, _ = wm.decode(model, params, imagined)
+        errors = dict(error=jnp.mean(jnp.abs(vector - seq.vector[:, 8:])),
+                      hold=jnp.mean(jnp.abs(seq.vector[:, 7:8] - seq.vector[:, 8:])),
+                      reward_error=jnp.mean(jnp.abs(wm.predict_reward(model, params, imagined) - seq.reward[:, 8:])),
+                      reward_hold=jnp.mean(jnp.abs(seq.reward[:, 7:8] - seq.reward[:, 8:])))
+        learned = wm.latent_model(model, params)
+        one = jax.tree_util.tree_map(lambda x: x[0], start)
+        plan = cem_improve(learned, cfg)(one, jnp.zeros((10, 1)), jax.random.key(5))
+        random_plans = jax.random.uniform(jax.random.key(6), (64, 10, 1), minval=-2.0, maxval=2.0)
+        return errors, plan, rollout_returns(learned, one, plan[None])[0], rollout_returns(learned, one, random_plans)
+
+    errors, plan, planned, random_returns = open_loop_and_plans(params)
+    error, hold = float(errors["error"]), float(errors["hold"])
+    assert error < 0.5 * hold, (error, hold)
+    reward_error, reward_hold = float(errors["reward_error"]), float(errors["reward_hold"])
+    assert reward_error < reward_hold / 3, (reward_error, reward_hold)
     assert plan.shape == (10, 1) and bool(jnp.all(jnp.abs(plan) <= 2.0))
-    random_plans = jax.random.uniform(jax.random.key(6), (64, 10, 1), minval=-2.0, maxval=2.0)
-    planned = rollout_returns(learned, one, plan[None])[0]
-    assert planned > jnp.mean(rollout_returns(learned, one, random_plans))
+    assert planned > jnp.mean(random_returns)
 
 
 def test_a_model_trains_offline_from_a_collected_dataset(pendulum, tmp_path):
@@ -189,12 +215,12 @@ def test_a_model_trains_offline_from_a_collected_dataset(pendulum, tmp_path):
 
         model = wm.make_world_model(pendulum.spec, SMALL)
         optimizer = wm.model_optimizer(SMALL)
-        params = wm.init_params(model, jax.random.key(2))
-        opt_state = optimizer.init(params)
-        step = jax.jit(lambda p, o, s, k: wm.train_step(model, optimizer, p, o, s, k))
+        params = init_params(model, jax.random.key(2))
+        opt_state = jax.jit(optimizer.init)(params)
+        step = jax.jit(lambda p, o, b, k: wm.train_step(model, optimizer, p, o, wm.sequences_from_dataset(
+            pendulum.spec, b), k))
         first = None
         for i, batch in enumerate(loader.batches(jax.random.key(3), 300)):
-            params, opt_state, metrics = step(params, opt_state, wm.sequences_from_dataset(pendulum.spec, batch),
-                                              jax.random.key(i))
+            params, opt_state, metrics = step(params, opt_state, batch, jax.random.key(i))
             first = float(metrics["observation_loss"]) if first is None else first
     assert float(metrics["observation_loss"]) < 0.1 * first, (first, float(metrics["observation_loss"]))

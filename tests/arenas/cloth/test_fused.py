@@ -1,6 +1,7 @@
 """The fused substep kernel (Pallas; interpreted on the CPU) against the jax.numpy solver on the same states."""
 
 import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -28,17 +29,25 @@ def _crumpled(physics, key):
                                                    (physics.num_pickers, 1)))
 
 
-@pytest.mark.parametrize("pickers", [1, 2])
-def test_the_fused_kernel_matches_the_jax_numpy_solver(pickers):
+@functools.cache
+def _solvers(pickers):
+    """MESH's jax.numpy and fused solvers with ``pickers`` pickers, 4 substeps: ``(xla, fused, params, xla step,
+    fused step)``, the steps jitted once for the module. Interpreted on the CPU, each fused step program takes
+    ~16 s to compile whatever the cloth's size (its run takes milliseconds), so the tests share them."""
     xla = ClothPhysics(MESH, num_pickers=pickers, solver="xla", substeps=4)
     kernel = dataclasses.replace(xla, solver="fused")
-    params = xla.default_params()
+    return xla, kernel, xla.default_params(), jax.jit(xla.step), jax.jit(kernel.step)
+
+
+@pytest.mark.parametrize("pickers", [1, 2])
+def test_the_fused_kernel_matches_the_jax_numpy_solver(pickers):
+    xla, kernel, params, xla_step, kernel_step = _solvers(pickers)
     state = _crumpled(xla, jax.random.key(pickers))
     grasp = jnp.tile(jnp.array([[0.0, 0.0, 0.0, 1.0]]), (pickers, 1))
     lift = jnp.tile(jnp.array([[0.01, -0.005, 0.02, 1.0]]), (pickers, 1))
     a, b = state, state
     for control in (grasp, lift, lift):
-        a, b = jax.jit(xla.step)(a, control, params), jax.jit(kernel.step)(b, control, params)
+        a, b = xla_step(a, control, params), kernel_step(b, control, params)
         assert bool(a.grasped.any())
         np.testing.assert_allclose(np.asarray(b.positions), np.asarray(a.positions), atol=2e-6)
         np.testing.assert_allclose(np.asarray(b.velocities), np.asarray(a.velocities), atol=2e-3)
@@ -46,13 +55,13 @@ def test_the_fused_kernel_matches_the_jax_numpy_solver(pickers):
 
 
 def test_the_fused_kernel_runs_batched_and_every_cloth_alone_gives_the_same():
-    physics = ClothPhysics(MESH, solver="fused", substeps=2)
-    params = physics.default_params()
+    # the one-picker cloth of the test above (4 substeps): its single-cloth step is compiled once for both
+    _, physics, params, _, step = _solvers(1)
     states = jax.vmap(lambda k: _crumpled(physics, k))(jax.random.split(jax.random.key(0), 3))
     control = jnp.array([[0.0, 0.0, 0.01, 1.0]])
     many = jax.jit(jax.vmap(physics.step, in_axes=(0, None, None)))(states, control, params)
     for i in range(3):
-        one = jax.jit(physics.step)(jax.tree_util.tree_map(lambda x: x[i], states), control, params)
+        one = step(jax.tree_util.tree_map(lambda x: x[i], states), control, params)
         # (interpreted on the CPU, XLA may round the last bit differently for another batch size; on a GPU each
         # cloth is one program of the same code, whatever the batch)
         np.testing.assert_allclose(np.asarray(many.positions[i]), np.asarray(one.positions), atol=1e-6)
@@ -86,14 +95,26 @@ def test_kernel_programs_run_two_particles_per_thread_in_4_to_32_warps():
     assert [fused.default_warps(n) for n in (16, 256, 1024, 2048, 4096, 16384)] == [4, 4, 16, 32, 32, 32]
 
 
+LIST_MESH = ClothMesh(rows=10, cols=12, spacing=0.01)
+RADIUS = jnp.float32(0.016)
+
+
+@functools.cache
+def _kernel_list(slots):
+    """The kernel's list of LIST_MESH's pairs within RADIUS, keeping ``slots`` candidates: one jitted program per
+    ``slots`` for the module (interpreted, each takes ~10 s to compile)."""
+    return jax.jit(lambda x: fused.neighbour_list(LIST_MESH, x, RADIUS, slots=slots))
+
+
+_xla_list = jax.jit(lambda x: neighbours_xla(LIST_MESH, x, RADIUS))  # one program, not hundreds of eager ops
+
+
 # a loose heap, one piled past the list's slots (overflow), and one with more candidates than the kernel keeps
 @pytest.mark.parametrize("size, kept", [(0.05, 64), (0.02, 64), (0.02, 4)])
 def test_the_kernel_lists_the_pairs_the_jax_numpy_list_does(size, kept):
-    mesh = ClothMesh(rows=10, cols=12, spacing=0.01)
-    x = jnp.asarray(np.random.default_rng(0).uniform(0, size, (mesh.num_particles, 3)).astype(np.float32))
-    radius = jnp.float32(0.016)
-    expect, _ = neighbours_xla(mesh, x, radius)
-    found, overflow = jax.jit(lambda x: fused.neighbour_list(mesh, x, radius, slots=kept))(x)
+    x = jnp.asarray(np.random.default_rng(0).uniform(0, size, (LIST_MESH.num_particles, 3)).astype(np.float32))
+    expect, _ = _xla_list(x)
+    found, overflow = _kernel_list(kept)(x)
     np.testing.assert_array_equal(np.asarray(found), np.asarray(expect))  # the same pairs, in the same order
     listed = {(i, int(q)) for i, row in enumerate(np.asarray(found)) for q in row if q >= 0}
     assert listed and all((q, i) in listed for i, q in listed)  # every pair listed by both its particles
@@ -106,26 +127,28 @@ def test_which_walk_program_a_particle_is_dealt_to_changes_nothing_in_the_list(m
     # the walk's programs are dealt particles busiest first; dealt quietest first, in programs of 32, the list is
     # the same (each particle's candidates are walked in the same order whichever program walks them). A loose
     # heap: no particle has more candidates within the radius than the walk keeps, so the listing reads those
-    mesh = ClothMesh(rows=10, cols=12, spacing=0.01)
-    x = jnp.asarray(np.random.default_rng(2).uniform(0, 0.05, (mesh.num_particles, 3)).astype(np.float32))
-    radius = jnp.float32(0.016)
-    cell, _, _, count = collision.sorted_cells(x, radius)
-    busy = fused.candidate_counts(cell, x, radius, count)
+    x = jnp.asarray(np.random.default_rng(2).uniform(0, 0.05, (LIST_MESH.num_particles, 3)).astype(np.float32))
+
+    @jax.jit
+    def candidates(x):
+        cell, _, _, count = collision.sorted_cells(x, RADIUS)
+        return fused.candidate_counts(cell, x, RADIUS, count)
+
+    busy = candidates(x)
     assert int(busy.max()) > 2 * int(busy.min())  # a deal that matters: the particles' walks differ in length
     monkeypatch.setattr(fused, "LIST_BLOCK", 32)
     monkeypatch.setattr(fused, "candidate_counts", lambda *args: -busy)
     fused._list_calls.cache_clear()
-    try:
-        found, _ = jax.jit(lambda x: fused.neighbour_list(mesh, x, radius))(x)
+    try:  # traced afresh (not _kernel_list's program): the walk is built with the patched deal
+        found, _ = jax.jit(lambda x: fused.neighbour_list(LIST_MESH, x, RADIUS))(x)
     finally:
         fused._list_calls.cache_clear()
-    np.testing.assert_array_equal(np.asarray(found), np.asarray(neighbours_xla(mesh, x, radius)[0]))
+    np.testing.assert_array_equal(np.asarray(found), np.asarray(_xla_list(x)[0]))
 
 
 def test_the_kernel_lists_pairs_just_within_the_radius_across_a_cell_corner():
     # the list skips neighbour cells beyond the radius: a pair that straddles a corner of the cells, just within
     # the radius, must still be listed (each pair far from the others, particles k and k + 60 five rows apart)
-    mesh = ClothMesh(rows=10, cols=12, spacing=0.01)
     radius = 0.016
     rng = np.random.default_rng(1)
     x = np.stack([np.arange(120) * 10.0, np.full(120, 40.0), np.full(120, 20.0)], -1) * radius
@@ -137,10 +160,9 @@ def test_the_kernel_lists_pairs_just_within_the_radius_across_a_cell_corner():
         before = rng.uniform(0.05, 0.95) * distance
         x[k], x[k + 60] = corner - before * u, corner + (distance - before) * u
     x = jnp.asarray(x.astype(np.float32))
-    found, _ = jax.jit(lambda x: fused.neighbour_list(mesh, x, jnp.float32(radius)))(x)
-    found = np.asarray(found)
+    found = np.asarray(_kernel_list(64)(x)[0])
     assert all(found[k, 0] == k + 60 and found[k + 60, 0] == k for k in range(20))
-    np.testing.assert_array_equal(found, np.asarray(neighbours_xla(mesh, x, jnp.float32(radius))[0]))
+    np.testing.assert_array_equal(found, np.asarray(_xla_list(x)[0]))
 
 
 def test_the_arena_string_names_the_valid_solvers():

@@ -62,9 +62,10 @@ def test_a_flat_cloth_at_rest_stays_put_on_the_floor():
     params = physics.default_params()
     start = MESH.rest_positions + np.array([0, 0, 1.0], np.float32) * float(params.particle_radius)
     state = physics.state_from_positions(start)
-    before = float(coverage.coverage(state.positions, MESH))
+    covered = jax.jit(lambda x: coverage.coverage(x, MESH))  # one program for both, not a hundred eager ops
+    before = float(covered(state.positions))
     state = _run(physics, params, state, _still(physics, 1000))
-    after = float(coverage.coverage(state.positions, MESH))
+    after = float(covered(state.positions))
     assert abs(after / before - 1) < 0.005
     assert float(state.positions[:, 2].min()) >= float(params.particle_radius) - 1e-5
     np.testing.assert_allclose(np.asarray(state.positions[:, :2]), start[:, :2], atol=1e-3)
@@ -101,7 +102,8 @@ def test_a_folded_cloth_keeps_its_two_layers_apart():
     assert d.min() >= 0.97 * float(params.self_collision_distance), d.min()
     assert np.median(top[:, 2]) > np.median(bottom[:, 2]) + 0.5 * float(params.self_collision_distance)
     assert float(jnp.abs(state.velocities).max()) < 0.05
-    assert 0.45 < float(coverage.normalised_coverage(state.positions, MESH)) < 0.6  # about half the area
+    covered = jax.jit(lambda x: coverage.normalised_coverage(x, MESH))(state.positions)  # one program, not 100
+    assert 0.45 < float(covered) < 0.6  # about half the area
 
 
 def test_without_self_collision_the_layers_pass_through(monkeypatch):
@@ -122,7 +124,8 @@ def test_pickers_grasp_the_top_layer_and_release():
     centre = MESH.index(MESH.rows // 2, MESH.cols // 2)
     target = np.asarray(state.positions[centre])
     state = state.replace(picker_positions=jnp.asarray(target)[None])
-    state = physics.step(state, jnp.array([[0.0, 0.0, 0.0, 1.0]]), params)
+    step = jax.jit(physics.step)  # one program for the grasp and the release (op by op: hundreds of small ones)
+    state = step(state, jnp.array([[0.0, 0.0, 0.0, 1.0]]), params)
     held = np.asarray(state.held[0])
     held = held[held >= 0]
     d = np.linalg.norm(MESH.rest_positions[held, :2] - MESH.rest_positions[centre, :2], axis=-1)
@@ -132,7 +135,7 @@ def test_pickers_grasp_the_top_layer_and_release():
     lift = jnp.tile(jnp.array([0.0, 0.0, 0.01, 1.0]), (10, 1, 1))
     state = _run(physics, params, state, lift)
     np.testing.assert_allclose(float(state.positions[centre, 2]), target[2] + 0.1, atol=1e-5)
-    state = physics.step(state, jnp.array([[0.0, 0.0, 0.0, -1.0]]), params)
+    state = step(state, jnp.array([[0.0, 0.0, 0.0, -1.0]]), params)
     assert not bool(state.grasped.any())
     state = _run(physics, params, state, _still(physics, 100))
     assert float(state.positions[centre, 2]) < 0.02  # fell back down
@@ -142,7 +145,7 @@ def test_a_picker_above_the_cloth_grasps_nothing():
     physics = ClothPhysics(MESH)
     params = physics.default_params()
     state = physics.state_from_positions(MESH.rest_positions)  # pickers at the ready pose, 0.3 m up
-    state = physics.step(state, jnp.array([[0.0, 0.0, 0.0, 1.0]]), params)
+    state = jax.jit(physics.step)(state, jnp.array([[0.0, 0.0, 0.0, 1.0]]), params)  # one program, not hundreds
     assert not bool(state.grasped.any())
 
 
@@ -154,8 +157,8 @@ def test_steps_are_deterministic_and_batch_independent(batch):
     state = physics.state_from_positions(MESH.rest_positions + jnp.array([0, 0, 0.05]) + noise)
     one = jax.jit(physics.step)(state, jnp.zeros((1, 4)), params)
     states = jax.tree_util.tree_map(lambda x: jnp.stack([x] * batch), state)
-    many = jax.jit(jax.vmap(physics.step, in_axes=(0, None, None)))(states, jnp.zeros((1, 4)), params)
-    again = jax.jit(jax.vmap(physics.step, in_axes=(0, None, None)))(states, jnp.zeros((1, 4)), params)
+    step_many = jax.jit(jax.vmap(physics.step, in_axes=(0, None, None)))
+    many, again = step_many(states, jnp.zeros((1, 4)), params), step_many(states, jnp.zeros((1, 4)), params)
     np.testing.assert_array_equal(np.asarray(many.positions), np.asarray(again.positions))
     for i in range(batch):  # XLA on the CPU may round the last bit differently for another batch size
         np.testing.assert_allclose(np.asarray(many.positions[i]), np.asarray(one.positions), atol=1e-6)
@@ -166,7 +169,7 @@ def test_the_neighbour_list_finds_the_close_pairs_all_pairs_would():
     x = jnp.asarray(rng.uniform(0, 0.1, (300, 3)).astype(np.float32))
     radius = 0.02
     never = lambda i, j: jnp.zeros(i.shape, bool)  # noqa: E731
-    found, overflow = collision.neighbour_list(x, radius, never, max_neighbours=64)
+    found, overflow = jax.jit(lambda x: collision.neighbour_list(x, radius, never, max_neighbours=64))(x)
     found = np.asarray(found)
     assert int(overflow) == 0
     d = np.linalg.norm(np.asarray(x)[:, None] - np.asarray(x)[None], axis=-1)
@@ -178,7 +181,7 @@ def test_the_neighbour_list_finds_the_close_pairs_all_pairs_would():
 def test_the_neighbour_list_counts_the_particles_it_could_not_read():
     x = jnp.full((20, 3), 0.005, jnp.float32).at[:, 0].add(jnp.arange(20) * 1e-4)  # 20 in one cell
     never = lambda i, j: jnp.zeros(i.shape, bool)  # noqa: E731
-    _, overflow = collision.neighbour_list(x, 0.02, never, candidates=16)
+    _, overflow = jax.jit(lambda x: collision.neighbour_list(x, 0.02, never, candidates=16))(x)
     assert int(overflow) == 20 * (20 - 16)  # each of the 20 misses 4
 
 
@@ -209,11 +212,15 @@ def test_self_collision_pushes_are_equal_and_opposite():
     rng = np.random.default_rng(1)
     x = rng.uniform(0, 0.01, (40, 3)).astype(np.float32)
     never = lambda i, j: jnp.zeros(i.shape, bool)  # noqa: E731
-    neighbours, _ = collision.neighbour_list(jnp.asarray(x), 0.01, never, max_neighbours=40)
-    share = collision.pair_shares(jnp.ones((40,), jnp.float32), neighbours)
-    xs = collision.components(jnp.asarray(x))
-    out = collision.separate(xs, xs, share, neighbours, jnp.float32(0.005), jnp.float32(0.3))
-    moved = np.stack([np.asarray(o) for o in out], -1) - x
+
+    @jax.jit  # one program (op by op, the list and the pushes dispatch over a hundred small ones)
+    def separated(x):
+        neighbours, _ = collision.neighbour_list(x, 0.01, never, max_neighbours=40)
+        share = collision.pair_shares(jnp.ones((40,), jnp.float32), neighbours)
+        xs = collision.components(x)
+        return collision.separate(xs, xs, share, neighbours, jnp.float32(0.005), jnp.float32(0.3))
+
+    moved = np.stack([np.asarray(o) for o in separated(jnp.asarray(x))], -1) - x
     assert np.abs(moved).max() > 1e-4  # pairs were pushed
     np.testing.assert_allclose(moved.sum(0), 0.0, atol=1e-6)
 
