@@ -4,8 +4,18 @@ Collection and the world model are as ``planet``'s (:mod:`jarena_agents.world_mo
 step trains the model on a window batch, then imagines ``imagination_horizon`` steps from every posterior
 state of that batch (gradients stopped) with the actor, and trains the actor by REINFORCE on normalised
 lambda-returns with an entropy bonus and the critic (two-hot) on the returns and on its slow copy
-(:mod:`jarena_agents.dreamer.losses`). The actor is DreamerV3's bounded normal for Box actions: mean ``tanh``,
-standard deviation in [0.1, 1], samples clipped to [-1, 1] and rescaled to the action bounds.
+(:mod:`jarena_agents.dreamer.losses`). The actor is DreamerV3's:
+
+- Box actions: a bounded normal: mean ``tanh``, standard deviation in [0.1, 1], samples clipped to [-1, 1] and
+  rescaled to the action bounds.
+- Discrete(n) actions: a categorical over n classes with 1% of the uniform mixed in ("unimix"), sampled as
+  one-hot vectors with straight-through gradients; the world model reads the one-hot vector, the arena the index.
+
+The actor's loss is REINFORCE for both, as DreamerV3's: its discrete actors always (``actor_grad_disc:
+reinforce``), and in its latest version every actor (``logpi * sg(adv)``), on advantages normalised by the
+return scale, with entropy regularisation 3e-4 (``entropy_coef``). The imagined trajectories and actions are
+constants of that loss; the samples' straight-through gradients would matter only to a loss that
+backpropagates through the model's imagination.
 """
 
 from __future__ import annotations
@@ -16,6 +26,7 @@ from typing import Any
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from flax import struct
 
@@ -23,6 +34,7 @@ from jarena import distributed
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.batching import batch_reset
+from jarena.core.spec import Box, Discrete
 from jarena.core.types import ArenaState, Info
 from jarena.data.buffer import make_buffer
 from jarena.data.buffer_state import BufferState
@@ -30,7 +42,6 @@ from jarena.data.experience import experience_spec
 from jarena_agents.config import at_least, in_unit_interval, make_config, non_negative, positive
 from jarena_agents.dreamer import losses
 from jarena_agents.networks import Gaussian, to_env_action
-from jarena_agents.planners.model import check_action_spec
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
 from jarena_agents.world_model import distributions, online
@@ -110,9 +121,70 @@ def bounded_normal(out: jax.Array) -> Gaussian:
     return Gaussian(jnp.tanh(mean), jnp.log(0.1 + 0.9 * nn.sigmoid(std + 2.0)))
 
 
+@struct.dataclass
+class OneHotCategorical:
+    """DreamerV3's actor distribution for Discrete(n) actions: ``probs`` (*, n), 1% uniform mixed in. Raw
+    actions are one-hot vectors (*, n); samples carry straight-through gradients (those of ``probs``)."""
+
+    probs: jax.Array
+
+    def sample(self, key: jax.Array) -> jax.Array:
+        return distributions.sample_one_hot(key, self.probs)
+
+    def mode(self) -> jax.Array:
+        return distributions.mode_one_hot(self.probs)
+
+    def log_prob(self, one_hot: jax.Array) -> jax.Array:
+        """(*): the log-probability of the class each one-hot (*, n) marks."""
+        return jnp.sum(jax.lax.stop_gradient(one_hot) * jnp.log(self.probs), -1)
+
+    def entropy(self) -> jax.Array:
+        return -jnp.sum(self.probs * jnp.log(self.probs), -1)
+
+
+def one_hot_categorical(logits: jax.Array) -> OneHotCategorical:
+    """The discrete actor's distribution from (*, n) logits, with DreamerV3's 1% unimix."""
+    return OneHotCategorical(distributions.categorical_probs(logits, distributions.UNIMIX))
+
+
+def check_action_spec(spec) -> None:
+    """Raises ``ValueError`` unless ``spec`` is Discrete or a float Box with finite bounds."""
+    if isinstance(spec, Discrete):
+        return
+    if isinstance(spec, Box) and np.issubdtype(spec.dtype, np.floating) and spec.bounded:
+        return
+    raise ValueError(f"dreamer acts in Discrete or bounded continuous action spaces (a float Box with finite "
+                     f"bounds); this arena has {spec!r}")
+
+
+def actor_outputs(spec) -> int:
+    """The actor head's width: ``n`` logits for Discrete(n), a mean and a std per dimension of a Box."""
+    return int(spec.n) if isinstance(spec, Discrete) else 2 * int(np.prod(spec.shape, dtype=int))
+
+
+def actor_distribution(spec, out: jax.Array) -> Gaussian | OneHotCategorical:
+    """The actor's distribution for actions of ``spec`` from the head's (*, :func:`actor_outputs`) outputs."""
+    return one_hot_categorical(out) if isinstance(spec, Discrete) else bounded_normal(out)
+
+
+def env_action(spec, raw: jax.Array, dist) -> jax.Array:
+    """A raw action (*, n) or (*, A) as the arena takes it: the one-hot's index, or the Box action in bounds."""
+    if isinstance(spec, Discrete):
+        return jnp.argmax(raw, -1).astype(spec.dtype)
+    return to_env_action(spec, raw, dist)
+
+
+def model_action(spec, raw: jax.Array, dist) -> jax.Array:
+    """A raw action (*, ...) as the world model reads it, (*, A): the one-hot itself (straight-through), or
+    the Box action in the arena's units (as the buffer holds it)."""
+    if isinstance(spec, Discrete):
+        return raw
+    return wm.action_vector(spec, to_env_action(spec, raw, dist), raw.ndim - 1)
+
+
 def make_dreamer(config=None) -> TrainableAgent:
     cfg = make_config(DreamerConfig, config, agent="dreamer")
-    online.check_online_config(cfg, "dreamer")
+    cfg = online.check_online_config(cfg, "dreamer")
     model_cfg = cfg.model_config()
     buffer = make_buffer(cfg.num_arenas, cfg.buffer_size, cfg.batch_size, mode="window", length=cfg.sequence_length)
     model_opt = wm.model_optimizer(model_cfg)
@@ -122,11 +194,13 @@ def make_dreamer(config=None) -> TrainableAgent:
                              optax.adam(cfg.critic_learning_rate, eps=1e-5))
 
     def world_model(spec: ArenaSpec) -> wm.WorldModel:
-        check_action_spec(spec.action, "dreamer")
+        check_action_spec(spec.action)
         return wm.make_world_model(spec, model_cfg)
 
     def actor(spec: ArenaSpec) -> Head:
-        return Head(2 * world_model(spec).action_size, cfg.hidden, cfg.layers)
+        check_action_spec(spec.action)
+        # a discrete actor starts uniform (zero logits), as DreamerV3's nearly does (output scale 0.01)
+        return Head(actor_outputs(spec.action), cfg.hidden, cfg.layers, zero_init=isinstance(spec.action, Discrete))
 
     def critic() -> Head:
         return Head(cfg.bins, cfg.hidden, cfg.layers, zero_init=True)
@@ -159,8 +233,8 @@ def make_dreamer(config=None) -> TrainableAgent:
     def choose(spec: ArenaSpec, params: dict, memory: Memory, info: Info, key, deterministic: bool):
         model = world_model(spec)
         latent = online.filter_belief(model, params["model"], memory.latent, memory.previous_action, info)
-        policy = bounded_normal(actor(spec).apply(params["actor"], latent.features()))
-        action = to_env_action(spec.action, policy.mode() if deterministic else policy.sample(key), policy)
+        policy = actor_distribution(spec.action, actor(spec).apply(params["actor"], latent.features()))
+        action = env_action(spec.action, policy.mode() if deterministic else policy.sample(key), policy)
         return action, Memory(latent=latent, previous_action=wm.action_vector(spec.action, action, 1))
 
     def act(state: DreamerState, info: Info, key, privileged=None):
@@ -194,9 +268,9 @@ def make_dreamer(config=None) -> TrainableAgent:
 
         def imagine(latent, key):
             action_key, model_key = jax.random.split(key)
-            dist = bounded_normal(net.apply(learner.actor, latent.features()))
+            dist = actor_distribution(spec.action, net.apply(learner.actor, latent.features()))
             raw = dist.sample(action_key)
-            action = wm.action_vector(spec.action, to_env_action(spec.action, raw, dist), 1)  # the buffer's units
+            action = model_action(spec.action, raw, dist)
             following, _ = model.rssm.apply(learner.model["rssm"], latent, action, model_key,
                                             method=RSSMCell.img_step)
             return following, (latent, raw)
@@ -204,7 +278,7 @@ def make_dreamer(config=None) -> TrainableAgent:
         last, (latents, raws) = jax.lax.scan(imagine, starts, keys)
         trajectory = jax.tree_util.tree_map(lambda xs, x: jnp.concatenate([xs, x[None]], 0), latents, last)
         trajectory = jax.lax.stop_gradient(trajectory)  # (H + 1, N)
-        raws = jax.lax.stop_gradient(raws)  # (H, N, A)
+        raws = jax.lax.stop_gradient(raws)  # (H, N, A): REINFORCE, as DreamerV3 for discrete and Box actions
         features = trajectory.features()
         rewards = wm.predict_reward(model, learner.model, trajectory)
         continues = wm.continue_probability(model, learner.model, trajectory)
@@ -215,7 +289,7 @@ def make_dreamer(config=None) -> TrainableAgent:
         scale = learner.scale.update(returns)
 
         def actor_objective(params):
-            dist = bounded_normal(net.apply(params, features[:-1]))
+            dist = actor_distribution(spec.action, net.apply(params, features[:-1]))
             return losses.actor_loss(dist.log_prob(raws), dist.entropy(), returns, values[:-1], weights,
                                      scale.scale, cfg.entropy_coef), jnp.mean(dist.entropy())
 
@@ -265,7 +339,7 @@ def make_dreamer(config=None) -> TrainableAgent:
                                arena_state=running.arena_state, info=running.info,
                                episode_return=running.episode_return, key=key, update=ts.update + 1,
                                env_steps=env_steps)
-        return ts, {**online.episode_metrics(record), **metrics}
+        return ts, {**online.episode_metrics(record, running.episode_return), **metrics}
 
     def train(train_state: DreamerTrainState, arena: Arena, num_updates: int):
         """Runs ``num_updates`` updates (static) in one ``lax.scan``; metrics have a leading update axis."""

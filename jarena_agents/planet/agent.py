@@ -21,18 +21,19 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.batching import batch_reset
+from jarena.core.spec import Box
 from jarena.core.types import ArenaState, Info
 from jarena.data.buffer import make_buffer
 from jarena.data.buffer_state import BufferState
 from jarena.data.experience import experience_spec
 from jarena_agents.config import at_least, in_unit_interval, make_config
 from jarena_agents.planners.cem import CEMConfig, cem_improve
-from jarena_agents.planners.model import check_action_spec
 from jarena_agents.planners.sampling import shift_plan
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
@@ -88,9 +89,17 @@ class PlaNetTrainState:
     env_steps: jax.Array  # int32
 
 
+def check_action_spec(spec) -> None:
+    """Raises ``ValueError`` unless ``spec`` is a float Box with finite bounds: CEM samples and clips plans in it."""
+    if isinstance(spec, Box) and np.issubdtype(spec.dtype, np.floating) and spec.bounded:
+        return
+    raise ValueError(f"planet plans with CEM over continuous actions and needs a bounded continuous action spec "
+                     f"(a float Box with finite bounds); this arena has {spec!r} (dreamer takes Discrete actions)")
+
+
 def make_planet(config=None) -> TrainableAgent:
     cfg = make_config(PlaNetConfig, config, agent="planet")
-    online.check_online_config(cfg, "planet")
+    cfg = online.check_online_config(cfg, "planet")
     model_cfg = cfg.model_config()
     cem = CEMConfig(samples=cfg.samples, horizon=cfg.horizon, iterations=cfg.iterations,
                     elite_fraction=cfg.elite_fraction, noise=1.0)
@@ -98,7 +107,7 @@ def make_planet(config=None) -> TrainableAgent:
     optimizer = wm.model_optimizer(model_cfg)
 
     def world_model(spec: ArenaSpec) -> wm.WorldModel:
-        check_action_spec(spec.action, "planet")
+        check_action_spec(spec.action)
         return wm.make_world_model(spec, model_cfg)
 
     def fresh_memory(spec: ArenaSpec, num_arenas: int) -> Memory:
@@ -177,7 +186,7 @@ def make_planet(config=None) -> TrainableAgent:
                               arena_state=running.arena_state, info=running.info,
                               episode_return=running.episode_return, key=key, update=ts.update + 1,
                               env_steps=env_steps)
-        return ts, {**online.episode_metrics(record), **metrics}
+        return ts, {**online.episode_metrics(record, running.episode_return), **metrics}
 
     def train(train_state: PlaNetTrainState, arena: Arena, num_updates: int):
         """Runs ``num_updates`` updates (static) in one ``lax.scan``; metrics have a leading update axis."""

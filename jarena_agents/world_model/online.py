@@ -10,6 +10,7 @@ episode begins (``info.step == 0``).
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -61,17 +62,29 @@ class OnlineConfig(WorldModelConfig, ArenaSchedule):
         return WorldModelConfig(**{f.name: getattr(self, f.name) for f in dataclasses.fields(WorldModelConfig)})
 
 
-def check_online_config(cfg: OnlineConfig, agent: str) -> None:
+def check_online_config(cfg: OnlineConfig, agent: str) -> OnlineConfig:
+    """``cfg`` checked, its ``buffer_size`` rounded down to a multiple of ``num_arenas`` (with a warning): each
+    arena keeps ``buffer_size // num_arenas`` steps. Raises ``ValueError`` naming what to change."""
+    cfg = rounded_buffer(cfg, agent)
     if cfg.replay_ratio is not None and cfg.gradient_steps < 1:
         low = cfg.batch_size * cfg.sequence_length / (2 * cfg.steps_per_update)
         raise ValueError(f"{agent}: replay_ratio={cfg.replay_ratio} gives less than one gradient step per update "
                          f"({cfg.steps_per_update} agent steps, batches of {cfg.batch_size} x {cfg.sequence_length} "
                          f"steps); use replay_ratio >= {low:g}, or more arenas or a longer rollout_length per update")
-    if cfg.buffer_size % cfg.num_arenas:
-        raise ValueError(f"{agent}: buffer_size={cfg.buffer_size} must be a multiple of num_arenas={cfg.num_arenas}")
     if cfg.buffer_size // cfg.num_arenas < cfg.sequence_length:
         raise ValueError(f"{agent}: each arena keeps buffer_size / num_arenas = {cfg.buffer_size // cfg.num_arenas} "
                          f"steps, fewer than sequence_length={cfg.sequence_length}")
+    return cfg
+
+
+def rounded_buffer(cfg: OnlineConfig, agent: str) -> OnlineConfig:
+    """``cfg`` with ``buffer_size`` rounded down to a multiple of ``num_arenas``, warning when that changes it."""
+    size = cfg.buffer_size - cfg.buffer_size % cfg.num_arenas
+    if size == cfg.buffer_size:
+        return cfg
+    warnings.warn(f"{agent}: buffer_size={cfg.buffer_size} is not a multiple of num_arenas={cfg.num_arenas}; "
+                  f"using buffer_size={size} ({size // cfg.num_arenas} steps per arena)", stacklevel=3)
+    return dataclasses.replace(cfg, buffer_size=size)
 
 
 def observation_inputs(model: wm.WorldModel, info: Info):
@@ -136,11 +149,13 @@ def collect(arena: Arena, cfg: OnlineConfig, buffer, running: Collection, env_st
     return jax.lax.scan(step, running, steps)
 
 
-def episode_metrics(record: dict) -> dict:
-    """``episodes``, ``episode_return`` (mean over the episodes that ended) and ``faulted_episodes``."""
+def episode_metrics(record: dict, running_return: jax.Array) -> dict:
+    """``episodes``, ``episode_return`` (mean over the episodes that ended), ``faulted_episodes`` and
+    ``running_return``: the mean over the arenas of ``running_return`` (B,), what their unfinished episodes
+    have earned so far, which shows progress before long episodes end."""
     finished = jnp.sum(record["done"])
     return dict(episodes=finished, episode_return=jnp.sum(record["finished_return"]) / jnp.maximum(finished, 1),
-                faulted_episodes=jnp.sum(record["faulted"]))
+                faulted_episodes=jnp.sum(record["faulted"]), running_return=jnp.mean(running_return))
 
 
 def model_step(model: wm.WorldModel, optimizer, buffer, buffer_state, params: dict, opt_state, key: jax.Array):

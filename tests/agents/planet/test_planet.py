@@ -46,10 +46,15 @@ def trained(agent, pendulum):
 
 
 def test_config_errors_name_the_problem():
-    with pytest.raises(ValueError, match="buffer_size=41 must be a multiple of num_arenas=2"):
-        jarena_agents.build_agent("planet", {**TINY, "buffer_size": 41})
+    with pytest.warns(UserWarning, match="buffer_size=41 is not a multiple of num_arenas=2; using buffer_size=40"):
+        rounded = jarena_agents.build_agent("planet", {**TINY, "buffer_size": 41})
+    assert rounded.settings.buffer_size == rounded.config["buffer_size"] == 40
     with pytest.raises(ValueError, match="fewer than sequence_length=50"):
         jarena_agents.build_agent("planet", {**TINY, "sequence_length": 50})
+    cartpole = jarena.build_arena("classic|domain:cartpole")
+    with pytest.raises(ValueError, match=r"planet plans with CEM over continuous actions .* has Discrete\(2\) "
+                                         r"\(dreamer takes Discrete actions\)"):
+        jarena_agents.build_agent("planet", TINY).init(jax.random.key(0), cartpole.spec, 2)
 
 
 def test_replay_ratio_sets_the_gradient_steps(pendulum, trained):
@@ -114,6 +119,9 @@ def test_training_learns_the_model_online_and_resumes_bit_for_bit(pendulum, trai
     assert int(whole.env_steps) == 40 and int(whole.update) == 4
     losses = np.asarray(metrics["model_loss"])
     assert losses[0] == 0.0 and np.all(losses[1:] > 0.0)  # the model trains once learning_starts is reached
+    # no 200-step episode has ended: the running episodes' return so far shows instead
+    assert np.all(np.asarray(metrics["episodes"]) == 0)
+    np.testing.assert_allclose(metrics["running_return"][-1], jnp.mean(whole.episode_return), rtol=1e-6)
     assert not np.allclose(jax.tree_util.tree_leaves(whole.params)[0], jax.tree_util.tree_leaves(ts.params)[0])
     half, _ = train(init(jax.random.key(0), pendulum), pendulum, 2)
     resumed, _ = train(half, pendulum, 2)
