@@ -1,4 +1,4 @@
-"""The cloth oracles against the random agent on the cloth eval episodes (issue 17's oracle bars).
+"""The cloth oracles against the random agent on the cloth eval episodes (their quality bars).
 
 Flattening (crumpled starts): the bar is normalised coverage >= 0.9 within 10 pick-and-place actions on at
 least 90% of the eval episodes; episodes are also grouped in difficulty tiers by their initial coverage

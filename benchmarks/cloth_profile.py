@@ -3,7 +3,7 @@
 Crumpling the cloths runs about 250 physics steps, and under ``ncu`` every one of them is slow to launch, so the
 cloths are crumpled first, without the profiler, and saved (``--save``). The profiled process loads them and runs one
 ``ClothPhysics.step`` (``--load``), the ``step`` measurement's step of ``benchmarks/cloth_throughput.py``: picker
-closed, moving 3 mm along each axis. On an NVIDIA H200 (RESULTS.md, tenth session) the profiled run took about
+closed, moving 3 mm along each axis. On an NVIDIA H200 (RESULTS.md, cloth) the profiled run took about
 2 minutes, most of it ``ncu``'s start-up::
 
     python benchmarks/cloth_profile.py --save /tmp/cloth_states.npz

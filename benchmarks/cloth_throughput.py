@@ -1,4 +1,4 @@
-"""Pick-and-place actions and cloth physics steps per second (issue 17), with 128 x 128 observations.
+"""Pick-and-place actions and cloth physics steps per second, with 128 x 128 observations.
 
 The measurements, each one jitted ``lax.scan`` for a batch of B cloths, compiled apart
 (``jit(...).lower(...).compile()``, timed), one warm-up call, then ``--repeats`` timed calls interleaved across

@@ -1,4 +1,4 @@
-"""Steps per second across the Gymnasium boundary (issue 21), both ways, each against its peer in the same run.
+"""Steps per second across the Gymnasium boundary, both ways, each against its peer in the same run.
 
 For each batch size B, ``--steps`` steps with uniformly random actions and auto-reset, best of ``--repeats``
 timed calls after a warm-up (calls interleaved across measurements):

@@ -113,8 +113,8 @@ def ours_loop(arena_string: str, batch: int, reset: str | None = None):
         states, info = jarena.batch_step(arena, states, _random_actions(key, t, batch, dim), params,
                                          reset_done=(reset != "none"))
         # The next key depends on the step's rewards and observations, so that XLA computes them, as the
-        # peers' loops do (their observations and rewards are in the state they carry). Until session 13 it
-        # did not: the figures recorded before then are of steps without observation and reward.
+        # peers' loops do (their observations and rewards are in the state they carry). Earlier versions
+        # did not: the oldest figures in RESULTS.md's history are of steps without observation and reward.
         used = jnp.mean(info.reward) + sum(jnp.mean(x.astype(jnp.float32))
                                            for x in jax.tree_util.tree_leaves(info.observation))
         return states, jax.random.fold_in(key, jax.lax.bitcast_convert_type(used, jnp.uint32))

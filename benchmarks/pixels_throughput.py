@@ -1,5 +1,5 @@
-"""Camera frames per second of MJX arenas rendered in JAX, against MuJoCo's host renderer and the physics step
-(issue 18).
+"""Camera frames per second of MJX arenas rendered in JAX, against MuJoCo's host renderer and the physics
+step.
 
 For each domain, resolution R and batch size B, each measurement is one jitted ``lax.scan`` compiled apart
 (``jit(...).lower(...).compile()``, timed), one warm-up call, then ``--repeats`` timed calls interleaved across
@@ -16,7 +16,7 @@ measurements (best shown, median in the JSON):
   camera 0 of ``--host-frames`` states one after another on the host, each from ``qpos`` (``mj_forward``,
   ``update_scene``, ``render``): frames/s of one renderer (one process).
 
-Goal (issue 18): at B = 4096, rendering a 64 x 64 frame costs no more than one walker control step
+Goal: at B = 4096, rendering a 64 x 64 frame costs no more than one walker control step
 (``render`` frames/s >= ``step`` steps/s), and ``render`` is >= 100x ``host``.
 
 Usage::

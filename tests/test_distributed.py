@@ -125,7 +125,7 @@ def test_four_devices_in_one_process_train_as_one_device(agent, one_device, tmp_
 
 
 def test_two_processes_of_four_devices_train_as_one_device_and_a_stopped_run_resumes(one_device, tmp_path):
-    # 2 processes x 4 devices (a cluster of two 4-GPU hosts: issue 23's CPU part; PPO's 8 arenas leave one
+    # 2 processes x 4 devices (a cluster of two 4-GPU hosts, on CPUs; PPO's 8 arenas leave one
     # arena per device, and its minibatches of 64 samples 8 per device); the first launch stops after one chunk
     # (as a killed job would, after its checkpoint), the second resumes from the checkpoints all processes wrote
     _launch(tmp_path, "ppo", "all", cpu_devices=4, processes=2, stop_after=1)
@@ -149,7 +149,7 @@ def test_four_processes_train_as_one_device(one_device, tmp_path):
     _assert_same_run(got, one_device["ppo"])
 
 
-# A wider mesh (issue 23's CPU part): 8 devices, the width of one 8-GPU node, in one process (as 2 processes of 4
+# A wider mesh (on CPUs): 8 devices, the width of one 8-GPU node, in one process (as 2 processes of 4
 # devices: the resume test above).
 def test_eight_devices_in_one_process_train_as_one_device(one_device, tmp_path):
     _launch(tmp_path, "ppo", "all", cpu_devices=8)

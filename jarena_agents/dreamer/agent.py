@@ -34,7 +34,7 @@ from jarena import distributed
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.batching import batch_reset
-from jarena.core.spec import Box, Discrete
+from jarena.core.spec import Discrete
 from jarena.core.types import ArenaState, Info
 from jarena.data.buffer import make_buffer
 from jarena.data.buffer_state import BufferState
@@ -42,6 +42,7 @@ from jarena.data.experience import experience_spec
 from jarena_agents.config import at_least, in_unit_interval, make_config, non_negative, positive
 from jarena_agents.dreamer import losses
 from jarena_agents.networks import Gaussian, to_env_action
+from jarena_agents.planners.model import is_bounded_continuous
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
 from jarena_agents.world_model import distributions, online
@@ -149,9 +150,7 @@ def one_hot_categorical(logits: jax.Array) -> OneHotCategorical:
 
 def check_action_spec(spec) -> None:
     """Raises ``ValueError`` unless ``spec`` is Discrete or a float Box with finite bounds."""
-    if isinstance(spec, Discrete):
-        return
-    if isinstance(spec, Box) and np.issubdtype(spec.dtype, np.floating) and spec.bounded:
+    if isinstance(spec, Discrete) or is_bounded_continuous(spec):
         return
     raise ValueError(f"dreamer acts in Discrete or bounded continuous action spaces (a float Box with finite "
                      f"bounds); this arena has {spec!r}")

@@ -21,19 +21,18 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 from flax import struct
 
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.batching import batch_reset
-from jarena.core.spec import Box
 from jarena.core.types import ArenaState, Info
 from jarena.data.buffer import make_buffer
 from jarena.data.buffer_state import BufferState
 from jarena.data.experience import experience_spec
 from jarena_agents.config import at_least, in_unit_interval, make_config
 from jarena_agents.planners.cem import CEMConfig, cem_improve
+from jarena_agents.planners.model import is_bounded_continuous
 from jarena_agents.planners.sampling import shift_plan
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
@@ -91,7 +90,7 @@ class PlaNetTrainState:
 
 def check_action_spec(spec) -> None:
     """Raises ``ValueError`` unless ``spec`` is a float Box with finite bounds: CEM samples and clips plans in it."""
-    if isinstance(spec, Box) and np.issubdtype(spec.dtype, np.floating) and spec.bounded:
+    if is_bounded_continuous(spec):
         return
     raise ValueError(f"planet plans with CEM over continuous actions and needs a bounded continuous action spec "
                      f"(a float Box with finite bounds); this arena has {spec!r} (dreamer takes Discrete actions)")

@@ -66,9 +66,14 @@ class Model:
                                  f"expected {tuple(want.shape)} and {want.dtype}")
 
 
+def is_bounded_continuous(spec: Any) -> bool:
+    """Whether ``spec`` is a float Box with finite bounds (what sampling planners sample and clip plans in)."""
+    return isinstance(spec, Box) and np.issubdtype(spec.dtype, np.floating) and spec.bounded
+
+
 def check_action_spec(spec: Any, name: str) -> Box:
     """Returns ``spec`` if it is a bounded float Box, else raises ``ValueError`` naming what is needed."""
-    if not isinstance(spec, Box) or not np.issubdtype(spec.dtype, np.floating) or not spec.bounded:
+    if not is_bounded_continuous(spec):
         raise ValueError(f"sampling planners need a bounded continuous action spec (a float Box with finite "
                          f"bounds); {name!r} has {spec!r}")
     return spec

@@ -1,4 +1,4 @@
-"""Agent configs refuse out-of-range values, and unknown agent names are an error (issue 16)."""
+"""Agent configs refuse out-of-range values, and unknown agent names are an error."""
 
 import dataclasses
 import importlib

@@ -1,4 +1,4 @@
-"""Bad input to arenas and specs gets a clear error (issue 16): values given eagerly, params, episode ids."""
+"""Bad input to arenas and specs gets a clear error: values given eagerly, params, episode ids."""
 
 import jax
 import jax.numpy as jnp

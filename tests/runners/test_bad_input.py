@@ -1,4 +1,4 @@
-"""Runners refuse bad input before compiling (issue 16): agents that do not fit the arena, bad counts and ids."""
+"""Runners refuse bad input before compiling: agents that do not fit the arena, bad counts and ids."""
 
 import dataclasses
 

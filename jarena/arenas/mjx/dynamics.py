@@ -137,7 +137,7 @@ def mjx_dynamics(model: mujoco.MjModel, substeps: int = 1, name: str = "mjx",
         # arrays are made and used within one iteration; XLA runs that loop faster on GPUs (walker with
         # Playground's options, 10 substeps, H200: 9% more steps/s than a loop of physics_step). The price is
         # compile time, as the peeled stages are compiled twice (walker 12.5 -> 17.5 s); a one-copy form with
-        # each stage behind a lax.cond ran slower than both (benchmarks/RESULTS.md, session 6).
+        # each stage behind a lax.cond ran slower than both (benchmarks/RESULTS.md, the Control Suite on MJX).
         data = _integrate(m, data)
         if substeps > 1:
             data = jax.lax.fori_loop(0, substeps - 1, lambda _, d: _integrate(m, _observe_state(m, d)), data)

@@ -33,7 +33,7 @@ def pendulum(tmp_path_factory):
 
 
 def test_bc_clones_the_pendulum_oracle(pendulum):
-    """The issue's bar: BC's mean eval return is within 90% of the oracle's on the same eval episodes.
+    """The target: BC's mean eval return is within 90% of the oracle's on the same eval episodes.
 
     Pendulum returns are negative costs, so 90% of the oracle's performance means a return of at least
     ``oracle / 0.9`` (a cost at most 1/0.9 ~ 1.11 times the oracle's).
@@ -122,7 +122,7 @@ def test_same_key_same_run_and_seeds_vmap(pendulum):
     agent = jarena_agents.build_agent("bc", {"dataset": path, "hidden": (16,), "batch_size": 32})
 
     init = jax.jit(lambda key: agent.init_training(key, arena))  # reads the dataset through a host callback
-    train = jax.jit(lambda state: agent.train(state, arena, 5)[0].params)  # cached across sessions
+    train = jax.jit(lambda state: agent.train(state, arena, 5)[0].params)  # in the persistent compilation cache
     keys = jax.random.split(jax.random.key(0), 2)
     batched = jax.jit(jax.vmap(train))(jax.jit(jax.vmap(init))(keys))
 

@@ -1,5 +1,5 @@
 """BC from pixels: the cloth arena's rgb camera through a CNN, the mixture policy and the quarter-turn
-augmentation (issue 17's `bc` clones the cloth oracle from pixels)."""
+augmentation (`bc` clones the cloth oracle from pixels)."""
 
 import jax
 import jax.numpy as jnp
