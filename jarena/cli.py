@@ -222,7 +222,8 @@ def _cmd_train(args) -> int:
     say(f"training {agent.name!r} on {args.arena!r} for {steps} {unit} on {where} (seed {args.seed})", flush=True)
     result = train_and_evaluate(agent, arena, jax.random.key(args.seed), run_dir=args.run_dir,
                                 progress=not args.no_progress, select=args.select,
-                                eval_videos=_count(args.videos, "--videos"), devices=args.devices)
+                                eval_videos=_count(args.videos, "--videos"), devices=args.devices,
+                                **_validation_schedule(args.validations))
     last = result.history[-1]
     say(f"trained {last['env_steps']} steps in {last['seconds']:.1f} s "
           f"({last['env_steps'] / max(last['seconds'], 1e-9):.3g} steps/s, compile included)")
@@ -231,6 +232,12 @@ def _cmd_train(args) -> int:
         say(f"run directory: {args.run_dir} (config, train.csv, validation.csv, evaluation.json, "
               "learning_curve.png" + (", videos/" if Path(args.run_dir, "videos").is_dir() else "") + ")")
     return 0
+
+
+def _validation_schedule(validations: int) -> dict:
+    """``train_and_evaluate``'s validation arguments for ``--validations N`` (0: never validate)."""
+    count = _count(validations, "--validations")
+    return {"validate_every": 0} if count == 0 else {"validations": count}
 
 
 def _cmd_collect(args) -> int:
@@ -351,6 +358,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--videos", type=int, default=2, metavar="N",
                    help="film the first N eval episodes into RUN_DIR/videos (0: none); written after the results, "
                         "so a missing encoder or renderer costs only the videos")
+    p.add_argument("--validations", type=int, default=10, metavar="N",
+                   help="validate at most N times in the run, evenly spaced, the last after the final update "
+                        "(0: never; each validation runs the arena's validation episodes to their end)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_launch_flags(p, "devices to train on: 'all', or a count (default: all in a multi-process run, else 1)")
     p.set_defaults(fn=_cmd_train)

@@ -137,7 +137,7 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
       chunk_updates: updates per compiled chunk (default: about 20 chunks per run).
       validate_every: validate every this many chunks and after the last one (default: so that a run
         validates ``validations`` times; 0 disables validation).
-      validations: how many times a run validates when ``validate_every`` is not given (default 10).
+      validations: how many times (at most) a run validates when ``validate_every`` is not given (default 10).
       select: which policy the final evaluation runs (:data:`SELECTIONS`): ``best`` (default), the policy
         with the best validation return (ties: the latest; the final one when nothing was validated), or
         ``last``. The choice is reported in ``evaluation.selected``, the results table, ``evaluation.json``
@@ -211,7 +211,7 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
               f"{num_updates * steps_per_update} (checkpoint {checkpointer.directory / str(first_chunk)})")
     writer = _TensorBoard(log_path / "tensorboard") if log_path is not None else None
     bar = _progress(num_updates * steps_per_update, progress)
-    bar.update(first_chunk * chunk_updates * steps_per_update, history[-1]["episode_return"] if history else 0.0)
+    bar.update(first_chunk * chunk_updates * steps_per_update, history[-1] if history else {})
     start = time.perf_counter() - (history[-1]["seconds"] if history else 0.0)
     done_updates = first_chunk * chunk_updates
 
@@ -233,7 +233,7 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
             done_updates += n
             row = _history_row(metrics, done_updates, steps_per_update, time.perf_counter() - start)
             history.append(row)
-            bar.update(n * steps_per_update, row["episode_return"])
+            bar.update(n * steps_per_update, row)
             if writer is not None:
                 writer.log("train", row)
             if validate_every and ((index + 1) % validate_every == 0 or index + 1 == num_chunks):
@@ -297,11 +297,11 @@ def training_schedule(settings, total_steps: int | None, chunk_updates: int | No
                       validations: int) -> tuple[int, int, int]:
     """``(num_chunks, chunk_updates, validate_every)`` of a run: equal chunks (one compilation; may add less
     than a chunk of steps), about 20 of them by default, validated every ``validate_every`` chunks and after
-    the last (0: never), by default ``validations`` times in all."""
+    the last (0: never), by default at most ``validations`` times in all, as evenly as the chunks allow."""
     num_updates = max(1, math.ceil((total_steps or settings.total_steps) / settings.steps_per_update))
     chunk_updates = chunk_updates or max(1, math.ceil(num_updates / 20))
     num_chunks = math.ceil(num_updates / chunk_updates)
-    validate_every = max(1, num_chunks // validations) if validate_every is None else validate_every
+    validate_every = math.ceil(num_chunks / validations) if validate_every is None else validate_every
     return num_chunks, chunk_updates, validate_every
 
 
@@ -460,8 +460,23 @@ class _TensorBoard:
         self.writer.close()
 
 
+def shown_return(row: dict) -> str:
+    """The progress bar's return for a history row: ``ret=`` the finished episodes' mean, else ``ret so far=``
+    the unfinished episodes' running return, else ``ret=nan`` (the empty string before the first chunk)."""
+    if not row:
+        return ""
+    finished, running = row.get("episode_return", float("nan")), row.get("running_return", float("nan"))
+    if np.isfinite(finished) or not np.isfinite(running):
+        return f"ret={finished:.1f}"
+    return f"ret so far={running:.1f}"
+
+
 class _progress:
-    """A tqdm bar over environment steps showing steps/s, the latest return and ETA (or nothing)."""
+    """A tqdm bar over environment steps showing steps/s, the latest return and ETA (or nothing).
+
+    The return shown is the mean over the episodes that ended in the latest chunk (``ret``); before any has
+    ended (long episodes, few steps per arena), what the unfinished episodes have earned so far
+    (``ret so far``), for agents whose metrics report ``running_return``."""
 
     def __init__(self, total: int, enabled: bool):
         self.bar = None
@@ -470,9 +485,10 @@ class _progress:
 
             self.bar = tqdm(total=total, unit="step", unit_scale=True, dynamic_ncols=True, desc="training")
 
-    def update(self, steps: int, episode_return: float) -> None:
+    def update(self, steps: int, row: dict) -> None:
+        """Advances by ``steps`` environment steps; ``row``: the latest chunk's history row (may be empty)."""
         if self.bar is not None:
-            self.bar.set_postfix(ret=f"{episode_return:.1f}", refresh=False)
+            self.bar.set_postfix_str(shown_return(row), refresh=False)
             self.bar.update(steps)
 
     def note(self, text: str) -> None:

@@ -32,10 +32,12 @@ def test_errors_are_reported_not_raised(capsys):
 
 def test_train_prints_progress_and_table(capsys, tmp_path):
     assert main(["train", "ppo", "classic|domain:cartpole", "--steps", "8192", "--no-progress",
-                 "--set", "rollout_length=64", "--run-dir", str(tmp_path)]) == 0
+                 "--set", "rollout_length=64", "--run-dir", str(tmp_path), "--validations", "3"]) == 0
     out = capsys.readouterr().out
     assert "trained 8192 steps" in out and "| return" in out
     assert (tmp_path / "learning_curve.png").is_file()
+    validations = (tmp_path / "validation.csv").read_text().splitlines()
+    assert len(validations) == 1 + 3  # header and 3 validations (16 chunks: after 6, 12 and 16)
     trained = out[out.index("| return"):].split("\n")[0]
     assert main(["evaluate", "ppo", "classic|domain:cartpole", "--checkpoint", str(tmp_path)]) == 0
     out = capsys.readouterr().out
@@ -53,6 +55,8 @@ def test_train_names_bad_device_and_launch_flags(capsys, monkeypatch):
     assert main(["train", "ppo", "classic|domain:cartpole", "--steps", "64", "--coordinator", "localhost",
                  "--num-processes", "2", "--process-id", "0"]) == 2
     assert "HOST:PORT" in capsys.readouterr().err
+    assert main(["train", "ppo", "classic|domain:cartpole", "--steps", "64", "--validations", "-1"]) == 2
+    assert "--validations must be 0 (none) or more" in capsys.readouterr().err
     assert main(["train", "ppo", "classic|domain:cartpole", "--steps", "64", "--devices", "many"]) == 2
     assert "'all' or a positive integer" in capsys.readouterr().err
     assert main(["evaluate", "random", "classic|domain:cartpole", "--episodes", "2", "--devices", "all"]) == 0

@@ -157,3 +157,13 @@ def test_the_command_line_survives_a_failing_encoder_and_films_on_request(tmp_pa
     captured = capsys.readouterr()
     assert "| return" in captured.out and "videos not written" in captured.err and "imageio-ffmpeg" in captured.err
     assert main(["train", "ppo", CARTPOLE, "--videos", "-1"]) == 2
+
+
+def test_progress_bar_shows_running_return_until_an_episode_ends():
+    from jarena.training import shown_return
+
+    nan = float("nan")
+    assert shown_return({}) == ""  # before the first chunk
+    assert shown_return({"episode_return": 412.34, "running_return": 80.0}) == "ret=412.3"
+    assert shown_return({"episode_return": nan, "running_return": 81.26}) == "ret so far=81.3"  # none ended yet
+    assert shown_return({"episode_return": nan}) == "ret=nan"  # agents without a running return
