@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import types
 import typing
+import warnings
 from collections.abc import Mapping
 from typing import Any, TypeVar
 
@@ -172,3 +173,15 @@ def _convert(value, kinds: list[type], name: str, agent: str, optional: bool):
     names = " or ".join(["true or false" if k is bool else article[k] + k.__name__ for k in kinds]
                         + (["null"] if optional else []))
     raise ConfigError(f"config key {name!r} of agent {agent!r} must be {names}, got {value!r}")
+
+
+def rounded_buffer(cfg: C, agent: str) -> C:
+    """``cfg`` with ``buffer_size`` rounded down to a multiple of ``num_arenas`` (each arena keeps
+    ``buffer_size // num_arenas`` items), warning when that changes it: raising ``num_arenas`` should not make a
+    config with a round ``buffer_size`` fail."""
+    size = cfg.buffer_size - cfg.buffer_size % cfg.num_arenas
+    if size == cfg.buffer_size:
+        return cfg
+    warnings.warn(f"{agent}: buffer_size={cfg.buffer_size} is not a multiple of num_arenas={cfg.num_arenas}; "
+                  f"using buffer_size={size} ({size // cfg.num_arenas} steps per arena)", stacklevel=3)
+    return dataclasses.replace(cfg, buffer_size=size)

@@ -45,6 +45,7 @@ from jarena_agents.config import (
     make_config,
     non_negative,
     positive,
+    rounded_buffer,
     unbounded,
 )
 from jarena_agents.registry import register_agent
@@ -69,12 +70,15 @@ class SACConfig(ArenaSchedule):
       total_steps: environment steps of a run.
       discount: gamma.
       tau: Polyak coefficient of the target critics (``target <- tau * online + (1 - tau) * target``).
-      actor_lr, critic_lr, alpha_lr: Adam learning rates.
+      actor_lr: Adam learning rate of the actor.
+      critic_lr: Adam learning rate of the critics.
+      alpha_lr: Adam learning rate of the temperature ``alpha``.
       initial_alpha: the temperature at the start.
       autotune_alpha: tune ``alpha`` toward ``target_entropy``; if false it stays ``initial_alpha``.
       target_entropy: nats; ``None`` means ``-|A|`` (minus the number of action dimensions).
       hidden: widths of the ReLU layers of the actor and of each critic.
-      log_std_min, log_std_max: bounds of the actor's log standard deviation (before ``tanh``).
+      log_std_min: lower bound of the actor's log standard deviation (before ``tanh``).
+      log_std_max: upper bound of the actor's log standard deviation (before ``tanh``).
       reward_scale: rewards are multiplied by this in the critic's target.
     """
 
@@ -112,8 +116,6 @@ def _check_config(cfg: SACConfig) -> None:
     if cfg.utd <= 0 or abs(grad - round(grad)) > 1e-9:
         fail(f"utd * num_arenas * rollout_length (gradient steps per update) must be a positive integer, got "
              f"{cfg.utd} * {cfg.num_arenas} * {cfg.rollout_length} = {grad}")
-    if cfg.buffer_size % cfg.num_arenas:
-        fail(f"buffer_size={cfg.buffer_size} must be a multiple of num_arenas={cfg.num_arenas}")
     if cfg.target_entropy is not None and not isinstance(cfg.target_entropy, int | float):
         fail(f"target_entropy must be a number or null (for -|A|), got {cfg.target_entropy!r}")
     if not cfg.log_std_min < cfg.log_std_max:
@@ -229,7 +231,7 @@ METRICS = ("critic_loss", "actor_loss", "alpha_loss", "alpha", "entropy", "q", "
 
 
 def make_sac(config=None) -> TrainableAgent:
-    cfg = make_config(SACConfig, config, agent="sac")
+    cfg = rounded_buffer(make_config(SACConfig, config, agent="sac"), "sac")
     _check_config(cfg)
     buffer = make_buffer(cfg.num_arenas, cfg.buffer_size, cfg.batch_size, mode="transition")
     actor_opt, critic_opt, alpha_opt = (optax.adam(cfg.actor_lr), optax.adam(cfg.critic_lr), optax.adam(cfg.alpha_lr))

@@ -10,7 +10,6 @@ episode begins (``info.step == 0``).
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -24,7 +23,7 @@ from jarena.core.batching import batch_step
 from jarena.core.types import Info
 from jarena.data.experience import transition_from
 from jarena_agents import networks
-from jarena_agents.config import ArenaSchedule, at_least, non_negative, positive
+from jarena_agents.config import ArenaSchedule, at_least, non_negative, positive, rounded_buffer
 from jarena_agents.world_model import model as wm
 from jarena_agents.world_model.model import WorldModelConfig
 from jarena_agents.world_model.networks import Latent, RSSMCell
@@ -75,16 +74,6 @@ def check_online_config(cfg: OnlineConfig, agent: str) -> OnlineConfig:
         raise ValueError(f"{agent}: each arena keeps buffer_size / num_arenas = {cfg.buffer_size // cfg.num_arenas} "
                          f"steps, fewer than sequence_length={cfg.sequence_length}")
     return cfg
-
-
-def rounded_buffer(cfg: OnlineConfig, agent: str) -> OnlineConfig:
-    """``cfg`` with ``buffer_size`` rounded down to a multiple of ``num_arenas``, warning when that changes it."""
-    size = cfg.buffer_size - cfg.buffer_size % cfg.num_arenas
-    if size == cfg.buffer_size:
-        return cfg
-    warnings.warn(f"{agent}: buffer_size={cfg.buffer_size} is not a multiple of num_arenas={cfg.num_arenas}; "
-                  f"using buffer_size={size} ({size // cfg.num_arenas} steps per arena)", stacklevel=3)
-    return dataclasses.replace(cfg, buffer_size=size)
 
 
 def observation_inputs(model: wm.WorldModel, info: Info):

@@ -131,8 +131,9 @@ def test_sac_rejects_discrete_actions_and_bad_configs():
         AGENT.init_training(jax.random.key(0), cartpole)
     with pytest.raises(ValueError, match="gradient steps per update.*positive integer"):
         jarena_agents.build_agent("sac", {"num_arenas": 3, "utd": 0.5})
-    with pytest.raises(ValueError, match="buffer_size=1000 must be a multiple of num_arenas=3"):
-        jarena_agents.build_agent("sac", {"num_arenas": 3, "buffer_size": 1000})
+    rounded = "sac: buffer_size=1000 is not a multiple of num_arenas=3; using buffer_size=999"
+    with pytest.warns(UserWarning, match=rounded):
+        assert jarena_agents.build_agent("sac", {"num_arenas": 3, "buffer_size": 1000}).settings.buffer_size == 999
     with pytest.raises(jarena_agents.ConfigError, match="unknown config key"):
         jarena_agents.build_agent("sac", {"lr": 1e-3})
     assert "sac" in jarena_agents.list_agents("trainable")
