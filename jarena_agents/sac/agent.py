@@ -65,7 +65,7 @@ class SACConfig(ArenaSchedule):
       utd: update-to-data ratio: gradient steps per environment step; ``utd * num_arenas * rollout_length``
         (the gradient steps per update) must be a positive integer.
       batch_size: transitions per gradient step.
-      buffer_size: replay capacity in transitions (a multiple of ``num_arenas``).
+      buffer_size: replay capacity in transitions (rounded down to a multiple of ``num_arenas``, with a warning).
       learning_starts: environment steps of uniform-random actions before learning.
       total_steps: environment steps of a run.
       discount: gamma.
