@@ -54,8 +54,8 @@ class Agent:
         ``privileged=True``, else ``None``.
       reset: ``(state, mask) -> state``; resets the per-arena state where ``mask`` (bool, (B,)) is set.
       update: ``(state, info, action) -> state``; updates internal state after a step.
-      success, terminate: ``(state, info) -> bool (B,)``; the agent's own view of success, and whether
-        it wants to stop.
+      success: ``(state, info) -> bool (B,)``; the agent's own view of success.
+      terminate: ``(state, info) -> bool (B,)``; whether the agent wants to stop.
       phase: ``(state, info) -> int32 (B,)``; the agent's current phase (e.g. for scripted oracles).
       batch_state: ``(state, num_arenas) -> state``; fits a given state (a trained policy's, from
         ``TrainableAgent.policy``) to a batch of B arenas: agents with per-arena memory (a recurrent

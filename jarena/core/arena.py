@@ -57,10 +57,14 @@ class Arena:
     :func:`jarena.batch_reset` / :func:`jarena.auto_reset`) for batches, ``jax.jit`` them as the caller.
 
     Attributes:
-      dynamics, sensor, task, tool: the four pieces (see DESIGN.md).
+      dynamics: the physics (``Dynamics``), the first of the four pieces (see DESIGN.md).
+      sensor: what the agent observes of the physics (``Sensor``).
+      task: reward, termination and success of each step (``Task``).
+      tool: turns the agent's action into control of the dynamics (``ActionTool``).
       name: a file-system friendly name (``classic-cartpole-balance``), used to find configs.
       build_string: the string that builds this arena, when it came from :func:`jarena.build_arena`.
-      num_val_episodes, num_eval_episodes: sizes of the fixed validation and evaluation splits.
+      num_val_episodes: size of the fixed validation split.
+      num_eval_episodes: size of the fixed evaluation split.
       auto_reset: how :func:`jarena.auto_reset` and :func:`jarena.batch_step` restart finished arenas:
         ``select`` (a fresh episode computed every step), ``lazy`` (fresh episodes computed only in steps
         where an arena finished) or ``repeat`` (each arena replays its first initial state, as Brax and

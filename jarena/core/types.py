@@ -98,7 +98,9 @@ class Info:
       observation: dict of arrays, as described by ``arena.observation_spec``.
       reward: float32 scalar, reward of the last step (0 after reset).
       reward_terms: dict of named float32 scalars explaining the reward.
-      terminated, truncated, success: bool scalars (see :class:`Outcome`).
+      terminated: bool scalar; the episode reached a terminal state (see :class:`Outcome`).
+      truncated: bool scalar; the episode was cut short, e.g. by a time limit (see :class:`Outcome`).
+      success: bool scalar; the task's success criterion holds (see :class:`Outcome`).
       goal: float32 vector (goal_dim,), (0,) when the task has no goal.
       metrics: dict of named scalars for evaluation.
       step: int32, agent steps taken in this episode.

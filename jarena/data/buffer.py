@@ -181,9 +181,10 @@ def make_buffer(num_arenas: int, capacity: int, sample_batch_size: int, *, mode:
       min_size: items (over all arenas) needed before ``can_sample`` is true.
       complete_only: ``"trajectory"`` mode samples only episodes stored from step 0 to their end;
         ``False`` also samples partly overwritten or unfinished ones.
-      episode_of, step_of, done_of: read an item's (or batch's) int episode id, int step within its
-        episode and bool end-of-episode flag; by default ``.episode``, ``.step`` and
-        ``.terminated | .truncated`` (attributes or mapping keys), as in :class:`jarena.data.Experience`.
+      episode_of: reads an item's (or batch's) int episode id; by default ``.episode``. The defaults of
+        these three read attributes or mapping keys, as in :class:`jarena.data.Experience`.
+      step_of: reads an item's (or batch's) int step within its episode; by default ``.step``.
+      done_of: reads an item's (or batch's) bool end-of-episode flag; by default ``.terminated | .truncated``.
 
     Raises:
       BufferError: naming the bad argument and the valid choices.

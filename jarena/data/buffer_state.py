@@ -22,8 +22,10 @@ class BufferState:
       experience: the items, leaves of shape (C, B, *item_shape).
       meta: int32 (C, B), per slot ``run << 2 | done << 1 | ends`` (:mod:`jarena.data.marks`); read it through
         the properties below.
-      last_episode, last_step, last_run: int32 (B,), episode id, step and run of each arena's newest item
-        (kept apart so that ``add`` never reads the big arrays it writes, which would make XLA copy them).
+      last_episode: int32 (B,), episode id of each arena's newest item. It and the next two are kept apart
+        so that ``add`` never reads the big arrays it writes, which would make XLA copy them.
+      last_step: int32 (B,), step of each arena's newest item.
+      last_run: int32 (B,), run of each arena's newest item.
       position: int32 scalar, the next slot to write (the same for every arena).
       count: int32 scalar, items stored per arena (at most C).
     """

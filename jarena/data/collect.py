@@ -136,7 +136,8 @@ def collect(agent: Agent, arena: Arena, dataset: TrajectoryDataset | None, n_tra
     """Runs ``agent`` on a batch of ``arena`` and appends ``n_trajectories`` finished episodes to ``dataset``.
 
     Args:
-      agent, arena: what to run (training episodes drawn from ``key``, auto-reset as they end).
+      agent: the agent to run.
+      arena: the arena to run it in (training episodes drawn from ``key``, auto-reset as they end).
       dataset: an open, writable :class:`TrajectoryDataset` whose configs fit (see :func:`configs_for`). In a
         multi-process run (:func:`jarena.distributed.initialize`) every process calls ``collect`` alike and
         only process 0 opens the dataset and writes to it; the others pass ``None``.

@@ -80,9 +80,11 @@ class TrajectoryDataset:
       path: the store's directory.
       mode: ``"w"`` (create, replacing a dataset already there), ``"a"`` (append to, or create, and
         resume collection), ``"r"`` (read only).
-      obs_config, act_config, goal_config: field configs (``{name: {"shape", "dtype", "output_key",
-        "compression"}}`` or :class:`~jarena.data.schema.Field`) to create a store; in mode ``"a"`` on an
-        existing store they are optional and must match the store's. Reading needs none.
+      obs_config: the observations' field configs (``{name: {"shape", "dtype", "output_key", "compression"}}``
+        or :class:`~jarena.data.schema.Field`) to create a store; in mode ``"a"`` on an existing store it is
+        optional and must match the store's. Reading needs none.
+      act_config: the actions' field configs, as ``obs_config``.
+      goal_config: the goals' field configs, as ``obs_config`` (none for tasks without a goal).
       chunk_bytes: target bytes per zarr chunk of each array (when creating).
 
     Raises:

@@ -29,7 +29,8 @@ class Experience:
       observation: dict of arrays, the observation the agent acted on.
       action: the action taken (any pytree, as ``arena.action_spec``).
       reward: float32 scalar, the reward of this step.
-      terminated, truncated: bool scalars; the episode ended with this step.
+      terminated: bool scalar; the episode ended with this step, in a terminal state.
+      truncated: bool scalar; the episode was cut short with this step (time limit).
       success: bool scalar; the task's success criterion after this step.
       next_observation: dict of arrays, the observation this step reached (the terminal one at an
         episode's end, even under auto-reset).

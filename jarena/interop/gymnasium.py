@@ -236,7 +236,9 @@ class ArenaVectorEnv(VectorEnv):
     compiled call; see the module docstring for the autoreset convention.
 
     Args:
-      arena, params, flatten: as :class:`ArenaEnv`.
+      arena: the arena, as :class:`ArenaEnv`.
+      params: arena params, as :class:`ArenaEnv`.
+      flatten: as :class:`ArenaEnv`.
       num_envs: the batch size.
     """
 

@@ -121,8 +121,11 @@ def render_batch(arena: Arena, states: ArenaState | PyTree, indices: int | Seque
       arena: the arena the states belong to.
       states: an :class:`ArenaState` (or its ``physics``) batched over B.
       indices: which arenas, an int or a sequence of ints.
-      params, params_axis: the batch's arena params, shared (``None``) or per arena (``0``).
-      width, height, camera: passed to ``Dynamics.render``.
+      params: the batch's arena params, shared or per arena (see ``params_axis``).
+      params_axis: ``None`` (params shared) or ``0`` (one per arena).
+      width: image width in pixels, passed to ``Dynamics.render``.
+      height: image height in pixels, passed to ``Dynamics.render``.
+      camera: the camera, passed to ``Dynamics.render``.
 
     Returns:
       uint8 (K, height, width, 3) for the K selected arenas.

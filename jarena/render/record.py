@@ -72,7 +72,8 @@ def write_episodes(arena: Arena, physics: PyTree, lengths: Sequence[int], paths:
       lengths: (K,) episode lengths in agent steps; video k shows states ``0 .. lengths[k]``.
       paths: K paths; one without a suffix gets ``options.format``'s (mp4 by default).
       options: frame size, camera, fps.
-      params, params_axis: the episodes' arena params, shared or per episode (axis 0).
+      params: the episodes' arena params, shared or per episode (see ``params_axis``).
+      params_axis: ``None`` (params shared) or ``0`` (one per episode).
 
     Returns:
       The paths written.

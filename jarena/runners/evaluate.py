@@ -172,7 +172,8 @@ def evaluate(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_
       arena: the arena.
       key: PRNG key for the agent's randomness (default ``jax.random.key(0)``).
       agent_state: the agent's state for a batch of N arenas (default: ``agent.init``).
-      params, params_axis: arena params, shared (axis ``None``) or per episode (axis 0).
+      params: arena params, shared or per episode (see ``params_axis``).
+      params_axis: ``None`` (params shared) or ``0`` (one per episode).
       split: ``eval`` or ``val``.
       episodes: explicit episode ids instead of a split's.
       max_steps: step cap (default: the arena's ``max_episode_steps``).

@@ -26,7 +26,9 @@ class Rollout:
     """The result of :func:`perform_parallel`.
 
     Attributes:
-      state, info, agent_state: the batch at the end (leading axis B), to continue from.
+      state: the arenas' states at the end (leading axis B), to continue from.
+      info: the arenas' :class:`Info` at the end (leading axis B), to continue from.
+      agent_state: the agent's state at the end, for the B arenas, to continue from.
       infos: per-step :class:`Info`, (T, B, ...), or ``None`` when not recorded.
       actions: per-step actions, (T, B, ...), or ``None`` when not recorded.
     """
@@ -102,10 +104,13 @@ def perform_parallel(agent: Agent, arena: Arena, key: jax.Array, num_arenas: int
     whose results are then global arrays (:func:`jarena.distributed.fetch` gathers them to the host).
 
     Args:
-      agent, arena: what to run.
+      agent: the agent to run.
+      arena: the arena to run it in.
       key: PRNG key for resets and the agent.
-      num_arenas, num_steps: batch size B and steps T.
-      params, params_axis: shared params (axis ``None``) or per-arena params (axis 0).
+      num_arenas: batch size B.
+      num_steps: agent steps T.
+      params: arena params, shared or per arena (see ``params_axis``).
+      params_axis: ``None`` (params shared) or ``0`` (one per arena).
       agent_state: the agent's state for B arenas (default: ``agent.init``).
       start: ``(state, info)`` to continue from (e.g. a previous rollout's), instead of fresh resets.
       record: return per-step infos and actions (T, B, ...); off saves memory for long runs.

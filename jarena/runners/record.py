@@ -48,13 +48,17 @@ def record_video(agent: Agent, arena: Arena, path: str | Path, episode: int | Se
     step for fast arenas (see :func:`jarena.render.video.playback`), until the longest episode ends.
 
     Args:
-      agent, arena: what to film; the arena must render (:func:`jarena.render.can_render`).
+      agent: the agent to film.
+      arena: the arena to film it in; it must render (:func:`jarena.render.can_render`).
       path: the video file, ``.mp4`` or ``.gif`` (a path without a suffix gets ``format``'s).
       episode: an episode id or a sequence of them (``0 .. n - 1`` are the eval split's).
       key: PRNG key of the agent's randomness (default ``jax.random.key(0)``).
       agent_state: the agent's state for a batch of ``len(episodes)`` arenas (default ``agent.init``).
-      params, params_axis: arena params, shared or per episode (axis 0).
-      width, height, camera: frame size in pixels per episode, and the camera (MuJoCo arenas).
+      params: arena params, shared or per episode (see ``params_axis``).
+      params_axis: ``None`` (params shared) or ``0`` (one per episode).
+      width: frame width in pixels per episode.
+      height: frame height in pixels per episode.
+      camera: the camera (MuJoCo arenas).
       max_steps: step cap (default: the arena's ``max_episode_steps``).
       fps: playback rate (default: real time).
       columns: grid columns for several episodes (default ``ceil(sqrt(n))``).

@@ -29,7 +29,9 @@ class EvalResult:
     """Results of evaluating an agent on a split's episodes (host numpy arrays, one entry per episode).
 
     Attributes:
-      arena, agent, split: names.
+      arena: the arena's name (its build string when it has one).
+      agent: the agent's name.
+      split: the split's name.
       episodes: int32 (N,) episode ids.
       returns: float (N,) undiscounted returns.
       lengths: int (N,) episode lengths in agent steps.

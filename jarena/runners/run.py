@@ -96,7 +96,8 @@ def run(agent: Agent, arena: Arena, key: jax.Array, *, episode: int | None = Non
     """Runs one episode (a training episode drawn from ``key``, or ``episode``) in one compiled call.
 
     Args:
-      agent, arena: what to run.
+      agent: the agent to run.
+      arena: the arena to run it in.
       key: PRNG key (episode draw and the agent's randomness).
       episode: an episode id, e.g. ``arena.episodes("eval")[3]`` (in ``[0, 2^31)``).
       params: arena params.

@@ -32,7 +32,8 @@ def goal_reaching(position: Callable[[Any], jax.Array], low, high, threshold: fl
 
     Args:
       position: maps the physics state to the controlled point, shape (goal_dim,).
-      low, high: bounds of the goal box, shape (goal_dim,).
+      low: lower corner of the goal box, shape (goal_dim,).
+      high: upper corner of the goal box, shape (goal_dim,).
       threshold: success when ``distance < threshold``.
       reward: ``dense`` (minus the distance, per step) or ``sparse`` (1 on success steps).
       terminate_on_success: end the episode on success.

@@ -145,9 +145,13 @@ def pull(positions: jax.Array, handles: jax.Array, targets: jax.Array, eligible:
     """The oracles' move: pick the ``pickers`` eligible handles farthest from their targets and place them there.
 
     Args:
-      positions: float32 (N, 3) particles; handles: int32 (H,) particles that may be pulled; targets: float32
-        (H, 2) where each should lie, x-y metres; eligible: bool (H,); pickers: K; spacing: the mesh's;
-        coordinates: the tool's frame.
+      positions: float32 (N, 3) particles.
+      handles: int32 (H,) particles that may be pulled.
+      targets: float32 (H, 2) where each handle should lie, x-y metres.
+      eligible: bool (H,), the handles that may be picked.
+      pickers: K, the number of pickers.
+      spacing: the mesh's spacing, metres.
+      coordinates: the tool's frame.
 
     Returns:
       float32 (4 K,) the action (handles on top ranked first: a covered one counts a quarter of its distance,

@@ -46,7 +46,8 @@ def sample_plans(key: jax.Array, mean: jax.Array, std: jax.Array | float, num: i
       mean: ``(H, *action_shape)`` plan to sample around.
       std: noise standard deviation, broadcastable to ``mean`` (action units).
       num: N, number of plans (N >= 1; with N = 1 only the mean).
-      low, high: action bounds, broadcastable to ``mean``.
+      low: lower action bounds, broadcastable to ``mean``.
+      high: upper action bounds, broadcastable to ``mean``.
 
     Returns:
       ``(N, H, *action_shape)`` float32.

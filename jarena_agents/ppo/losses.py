@@ -21,8 +21,11 @@ def compute_gae(rewards: jax.Array, values: jax.Array, next_values: jax.Array, t
     advantage leaks across an episode boundary (``done = terminated | truncated``).
 
     Args:
-      rewards, values, next_values: float (T, B).
-      terminated, done: bool (T, B).
+      rewards: float (T, B), ``r_t``.
+      values: float (T, B), the values of the observations acted on.
+      next_values: float (T, B), ``next_values_t`` as above.
+      terminated: bool (T, B), ``terminated_t``.
+      done: bool (T, B), ``terminated | truncated``.
 
     Returns:
       ``(advantages, returns)``, float (T, B), with ``returns = advantages + values``; no gradient.

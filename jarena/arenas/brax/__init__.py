@@ -80,7 +80,8 @@ def build(env: Any, backend: str = DEFAULT_BACKEND, action: Any = None, time_lim
       action: action tools in front of Brax's action, e.g. ``repeat(2)``.
       time_limit: episode length in Brax env steps (default 1000).
       wrap: task transforms after the time limit, e.g. ``reward_scale(0.1)``.
-      eval_episodes, val_episodes: sizes of the evaluation and validation splits.
+      eval_episodes: size of the evaluation split.
+      val_episodes: size of the validation split.
       auto_reset: how finished episodes restart under auto-reset: ``select``, ``lazy`` or ``repeat``
         (each arena replays its first initial state, as Brax and Playground; fastest); default: the
         domain's (see ``jarena.core.resets``).

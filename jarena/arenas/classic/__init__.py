@@ -27,7 +27,8 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
       action: action tools in front of the domain's control, e.g. ``repeat(2)`` or ``[rescale,repeat(2)]``.
       time_limit: episode length in dynamics steps (default: the domain's, as in Gymnasium).
       wrap: task transforms after the time limit, e.g. ``reward_scale(0.1)`` or a list.
-      eval_episodes, val_episodes: sizes of the evaluation and validation splits.
+      eval_episodes: size of the evaluation split.
+      val_episodes: size of the validation split.
       auto_reset: how finished episodes restart under auto-reset: ``select``, ``lazy`` or ``repeat``
         (each arena replays its first initial state, as Brax and Playground; fastest); default: the
         domain's (see ``jarena.core.resets``).

@@ -52,7 +52,8 @@ class CameraParams:
 
     height: () metres of the camera above the floor (the camera is above the world origin).
     fov: () field of view in degrees, the same vertically and horizontally (square images).
-    front_rgb, back_rgb: (3,) colours in [0, 1] of the cloth's front face (up when flat) and its back.
+    front_rgb: (3,) colour in [0, 1] of the cloth's front face (up when flat).
+    back_rgb: (3,) colour in [0, 1] of the cloth's back face.
     floor_rgb: (3,) colour in [0, 1] of the floor.
     ambient: () fraction of the light that does not depend on the surface's slant.
     """

@@ -150,8 +150,9 @@ def neighbour_list(x: jax.Array, radius: jax.Array, excluded, *, candidates: int
       radius: search radius, metres (a traced scalar is fine).
       excluded: ``(i (N, M), j (N, M)) -> bool (N, M)``, pairs never listed (grid neighbours); ``i == j``
         is excluded always.
-      candidates: particles read per particle; max_neighbours: entries kept per particle (both static).
-        A 40 x 40 cloth crumpled into a pile has up to about 170 particles in a particle's 27 cells.
+      candidates: particles read per particle (static). A 40 x 40 cloth crumpled into a pile has up to about
+        170 particles in a particle's 27 cells.
+      max_neighbours: entries kept per particle (static).
 
     Returns:
       int32 (N, max_neighbours) neighbour indices (-1: none; every pair listed by both its particles), and
@@ -280,9 +281,12 @@ def separate(x: Vec, x_prev: Vec, share: jax.Array, neighbours: jax.Array, dista
     (see :func:`components`).
 
     Args:
-      x: positions, three float32 (N,) arrays; x_prev: positions at the start of the substep, likewise;
-        share: float32 (N, M) from :func:`pair_shares`; neighbours: int32 (N, M) from :func:`neighbour_list`
-        (-1 entries ignored); distance: metres; friction: coefficient.
+      x: positions, three float32 (N,) arrays.
+      x_prev: positions at the start of the substep, likewise.
+      share: float32 (N, M) from :func:`pair_shares`.
+      neighbours: int32 (N, M) from :func:`neighbour_list` (-1 entries ignored).
+      distance: pairs closer than this are pushed apart, metres.
+      friction: Coulomb friction coefficient.
     """
     j = jnp.maximum(neighbours, 0)
     diff = [c[:, None] - c[j] for c in x]

@@ -548,12 +548,17 @@ def run_substeps(mesh: ClothMesh, substeps: int, x, v, inv_mass, holder, offset,
     """The substeps of one control step of one cloth (see :meth:`.physics.ClothPhysics.step`), fused.
 
     Args:
-      mesh: the particle grid (N particles); substeps: how many.
-      x, v: positions and velocities, three float32 (N,) arrays each (metres, m/s).
-      inv_mass: float32 (N,), 0 for held particles; holder: int32 (N,), the picker holding each particle
-        (-1: none); offset: three float32 (N,), held particle minus picker.
-      start, end: float32 (K, 3), the pickers' positions at the step's start and end.
-      tether_to: int32 (N, K) (-1: none); tether_length: float32 (N, K), metres.
+      mesh: the particle grid (N particles).
+      substeps: how many substeps to run.
+      x: positions, three float32 (N,) arrays (metres).
+      v: velocities, three float32 (N,) arrays (m/s).
+      inv_mass: float32 (N,), 0 for held particles.
+      holder: int32 (N,), the picker holding each particle (-1: none).
+      offset: three float32 (N,) arrays, held particle minus picker.
+      start: float32 (K, 3), the pickers' positions at the step's start.
+      end: float32 (K, 3), the pickers' positions at the step's end.
+      tether_to: int32 (N, K) (-1: none).
+      tether_length: float32 (N, K), metres.
       neighbours: int32 (M x padded_size(N),) from :func:`neighbour_rows` (row ``k``: each particle's ``k``-th
         pair, -1: none). Each pair's share of its push (:func:`.collision.pair_shares`) is computed here.
       scalars: float32 (len(SCALARS),) in the order of :data:`SCALARS`.

@@ -19,7 +19,8 @@ class ClothMesh:
     """A rectangular particle grid.
 
     Attributes:
-      rows, cols: particles along y and x (each at least 2).
+      rows: particles along y (at least 2).
+      cols: particles along x (at least 2).
       spacing: metres between grid neighbours at rest.
     """
 

@@ -98,8 +98,9 @@ class ClothParams:
 
     Attributes:
       mass: total mass of the cloth, kg (SoftGym's 0.5); see the module note.
-      stretch_compliance, shear_compliance, bend_compliance: XPBD compliance of the distance constraints
-        between grid neighbours, diagonal neighbours and neighbours two apart, m/N (0: rigid).
+      stretch_compliance: XPBD compliance of the distance constraints between grid neighbours, m/N (0: rigid).
+      shear_compliance: XPBD compliance of the distance constraints between diagonal neighbours, m/N (0: rigid).
+      bend_compliance: XPBD compliance of the distance constraints between neighbours two apart, m/N (0: rigid).
       damping: velocity damping, 1/s (velocities decay as ``exp(-damping t)``; FleX's 1.0).
       friction: Coulomb friction coefficient with the floor (SoftGym's dynamic friction 0.75).
       self_friction: Coulomb friction coefficient between touching layers of the cloth. SoftGym's particle

@@ -96,8 +96,10 @@ def motion(pick: jax.Array, place: jax.Array, params: PickPlaceParams, timing: T
     """The low-level controls of one pick-and-place, float32 ``(timing.steps, K, 4)``.
 
     Args:
-      pick, place: float32 (K, 2) world x-y points, metres.
-      params: heights; timing: phase lengths.
+      pick: float32 (K, 2) world x-y points to pick at, metres.
+      place: float32 (K, 2) world x-y points to place at, metres.
+      params: heights.
+      timing: phase lengths.
     """
     k = pick.shape[0]
     ready = jnp.array([0.0, 0.0, READY_HEIGHT], jnp.float32)

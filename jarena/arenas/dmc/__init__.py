@@ -75,11 +75,18 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
       action: action tools in front of the actuators, e.g. ``repeat(2)``.
       time_limit: episode length in control steps (default: the suite's, 1000 for most tasks).
       wrap: task transforms after the time limit, e.g. ``reward_scale(0.1)``.
-      eval_episodes, val_episodes: sizes of the evaluation and validation splits.
-      iterations, ls_iterations, integrator, eulerdamp, timestep, max_contact_points, max_geom_pairs: MuJoCo
-        simulation options (default: the suite model's): fewer solver iterations, ``integrator:euler``,
-        ``eulerdamp:false``, a longer physics ``timestep`` (s) and MJX contact culling are faster on MJX
-        and less exact, as mujoco_playground's models (see ``common.with_options``).
+      eval_episodes: size of the evaluation split.
+      val_episodes: size of the validation split.
+      iterations: MuJoCo solver iterations. This and the next six simulation options default to the suite
+        model's; fewer solver iterations, ``integrator:euler``, ``eulerdamp:false``, a longer physics
+        ``timestep`` and MJX contact culling are faster on MJX and less exact, as mujoco_playground's models
+        (see ``common.with_options``).
+      ls_iterations: MuJoCo line-search iterations.
+      integrator: ``euler``, ``rk4`` or ``implicitfast``.
+      eulerdamp: implicit joint damping in Euler steps (``false``: none).
+      timestep: physics timestep (s); it must divide the control timestep.
+      max_contact_points: MJX contact culling: contacts kept per collision function.
+      max_geom_pairs: MJX contact culling: geom pairs kept per pair type.
       touch_sensors: ``false`` leaves the model's touch sensors out of the simulation, for domains whose
         tasks never read them (humanoid; Playground's humanoid has none).
       auto_reset: how finished episodes restart under auto-reset: ``select``, ``lazy`` or ``repeat``
@@ -88,8 +95,9 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
       pixels: camera images rendered on device (:mod:`jarena.arenas.mjx.camera`): ``pixels:64`` (or
         ``[height,width]``) adds ``observation["pixels"]`` uint8 (64, 64, 3) from camera 0, the camera
         dm_control's pixel wrapper uses.
-      depth, segmentation: with ``pixels``, also observe ``depth`` (float32 (H, W), metres along the camera
-        axis) and ``segmentation`` (int32 (H, W, 2): object id and ``mjtObj`` type per pixel).
+      depth: with ``pixels``, also observe ``depth`` (float32 (H, W), metres along the camera axis).
+      segmentation: with ``pixels``, also observe ``segmentation`` (int32 (H, W, 2): object id and ``mjtObj``
+        type per pixel).
       state: with ``pixels``, ``false`` drops the state observation (images only); default ``true``.
       camera: with ``pixels``, the model camera's name or id (default 0).
       frame_stack: with ``pixels``, the last K images (and depth maps) instead of the last one:

@@ -212,12 +212,16 @@ def with_options(dynamics: Dynamics, iterations: int | None = None, ls_iteration
     longer physics timestep for some (pendulum, reacher, swimmer) and MJX's contact culling: faster on MJX, less exact.
 
     Args:
-      iterations, ls_iterations: solver and line-search iterations (positive ints).
-      integrator: one of ``INTEGRATORS``. eulerdamp: implicit joint damping in Euler steps.
+      iterations: solver iterations (positive int).
+      ls_iterations: line-search iterations (positive int).
+      integrator: one of ``INTEGRATORS``.
+      eulerdamp: implicit joint damping in Euler steps.
       timestep: physics timestep (s); it must divide the control timestep, which stays the suite's (the
         number of physics steps per control step changes instead).
-      max_contact_points, max_geom_pairs: MJX contact culling (positive ints): keep only the closest
-        this many contacts per collision function, and geom pairs per pair type.
+      max_contact_points: MJX contact culling (positive int): keep only the closest this many contacts per
+        collision function.
+      max_geom_pairs: MJX contact culling (positive int): keep only the closest this many geom pairs per pair
+        type.
       touch_sensors: ``False`` leaves the model's touch sensors out (MJX computes them from the contact
         forces every physics step; Playground's humanoid has none). Only for models that ``load_model``
         made, whose tasks never read them: the caller checks that.

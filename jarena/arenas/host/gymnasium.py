@@ -121,8 +121,11 @@ def from_gymnasium(env: str | Callable[[], Any], *, vectorization: str = "sync",
       max_batches: how many batches of simulators (one per ``batch_reset``) stay open at once; a training run
         with validation needs 2, and the least recently used batch is closed beyond this.
       name: the arena's name (default from the id: ``gym-cartpole-v1``).
-      time_limit, action, wrap, eval_episodes, val_episodes: as for every builder (a jarena time limit in
-        steps, action tools, task transforms, split sizes).
+      time_limit: a jarena time limit in steps, as for every builder.
+      action: action tools, as for every builder.
+      wrap: task transforms, as for every builder.
+      eval_episodes: size of the evaluation split, as for every builder.
+      val_episodes: size of the validation split, as for every builder.
       kwargs: keyword arguments of ``gymnasium.make``.
 
     The batch size is the arena batch's, as for any arena (``batch_reset(arena, key, B)``).

@@ -36,7 +36,8 @@ class HostPhysics:
       slot: int32, the simulator's index in its batch's vector env.
       observation: dict of arrays, the simulator's last observation.
       reward: float32, the last step's reward (0 after a reset).
-      terminated, truncated: bool, the last step's flags.
+      terminated: bool, the last step's terminated flag.
+      truncated: bool, the last step's truncated flag.
     """
 
     batch: jax.Array

@@ -302,7 +302,9 @@ def render(scene: Scene, data, camera: int, height: int, width: int) -> Frame:
     Args:
       scene: from :func:`scene_of` of the model ``data`` belongs to (static).
       data: an ``mjx.Data`` whose kinematics are current (as after ``mjx.forward`` or an MJX arena's step).
-      camera, height, width: static ints (a ``ValueError`` for a camera the scene lacks or a size below 1).
+      camera: static int, the camera's id (a ``ValueError`` for a camera the scene lacks).
+      height: static int, image height in pixels (a ``ValueError`` below 1).
+      width: static int, image width in pixels (a ``ValueError`` below 1).
     """
     if not isinstance(camera, int | np.integer) or not 0 <= camera < len(scene.camera_names):
         raise ValueError(f"render: camera must be an id in [0, {len(scene.camera_names)}) (Scene.camera maps "

@@ -41,7 +41,8 @@ def pixel_sensor(model: mujoco.MjModel, base: Sensor | None = None, size=64, cam
       base: the state sensor whose keys are kept, or ``None`` for images only.
       size: image side, or ``(height, width)``, in pixels.
       camera: a model camera's name or id (dm_control's pixel wrapper uses camera 0).
-      depth, segmentation: also observe ``depth`` and ``segmentation``.
+      depth: also observe ``depth``.
+      segmentation: also observe ``segmentation``.
     """
     height, width = image_size(size)
     scene = camera_lib.scene_of(model)

@@ -150,7 +150,8 @@ def triangles(o, d, vertices) -> tuple[jax.Array, jax.Array]:
     """Nearest front-facing triangle of a mesh hit by each ray (Moller-Trumbore).
 
     Args:
-      o, d: ray origins and directions, (..., 3), in the mesh's frame.
+      o: ray origins, (..., 3), in the mesh's frame.
+      d: ray directions, (..., 3), in the mesh's frame.
       vertices: (F, 3, 3) triangles, counter-clockwise seen from their front (MuJoCo's outward faces).
     Returns:
       ``(t, face)``: (...) the ray parameter of the nearest hit (``inf`` for none) and (...) int32 the index of
