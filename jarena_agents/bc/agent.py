@@ -84,11 +84,14 @@ class BCConfig:
 
     Attributes:
       dataset: path of the TrajectoryDataset of demonstrations (needed for training, not for acting).
-      policy: ``"deterministic"`` or ``"gaussian"`` (Box actions only); see the module docstring.
+      policy: ``"deterministic"``, ``"gaussian"`` or ``"mixture"`` (the last two: Box actions only); see the
+        module docstring.
       chunk: K, the number of consecutive actions predicted from one observation (``act`` runs the first).
       hidden: widths of the MLP's tanh layers.
       batch_size: observations (each with its K actions) per gradient step.
       learning_rate: Adam's step size; with ``anneal_lr`` it decays to 0 along a cosine over ``total_steps``.
+      anneal_lr: decay the learning rate to 0 along a cosine over the run's ``total_steps`` gradient updates;
+        if false it stays constant.
       max_grad_norm: global gradient-norm clip (0 disables it).
       total_steps: gradient updates of a run.
       normalize_observations: standardise observations with the dataset's statistics.

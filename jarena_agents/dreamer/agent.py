@@ -58,13 +58,16 @@ class DreamerConfig(online.OnlineConfig):
     """:class:`~jarena_agents.world_model.online.OnlineConfig` plus the actor-critic (DreamerV3's defaults:
     horizon 15, discount 0.997, lambda 0.95, entropy 3e-4, learning rates 3e-5, slow critic rate 0.02)."""
 
+    # H, steps imagined with the actor from every posterior state of the model's batch
     imagination_horizon: int = at_least(1, default=15)
-    discount: float = in_unit_interval(0.997, open_low=True)
-    return_lambda: float = in_unit_interval(0.95)
+    discount: float = in_unit_interval(0.997, open_low=True)  # gamma of the lambda-returns
+    return_lambda: float = in_unit_interval(0.95)  # lambda of the lambda-returns (0: one-step targets, 1: rewards to H)
+    # eta, weight of the actor's entropy bonus (advantages are divided by the return scale max(1, P95 - P5))
     entropy_coef: float = non_negative(3e-4)
-    actor_learning_rate: float = positive(3e-5)
-    critic_learning_rate: float = positive(3e-5)
-    behaviour_grad_clip: float = positive(100.0)
+    actor_learning_rate: float = positive(3e-5)  # Adam's (eps 1e-5), for the actor
+    critic_learning_rate: float = positive(3e-5)  # Adam's (eps 1e-5), for the critic
+    behaviour_grad_clip: float = positive(100.0)  # global-norm clip of the actor's and of the critic's gradients
+    # the slow critic's update after every critic step: slow <- slow + rate (critic - slow)
     slow_critic_rate: float = in_unit_interval(0.02, open_low=True)
     exploration_noise: float = non_negative(0.0)  # the actor samples; no extra noise
 

@@ -21,10 +21,10 @@ from jarena_agents.registry import register_agent
 class CartPoleOracleConfig:
     """Feedback gains on cart position, cart velocity, pole angle and pole angular velocity."""
 
-    k_x: float = unbounded(0.1)
-    k_x_dot: float = unbounded(0.3)
-    k_theta: float = unbounded(2.0)
-    k_theta_dot: float = unbounded(0.5)
+    k_x: float = unbounded(0.1)  # per m of cart position (pushes right while the weighted sum is > 0)
+    k_x_dot: float = unbounded(0.3)  # per m/s of cart velocity
+    k_theta: float = unbounded(2.0)  # per rad of pole angle (0: upright)
+    k_theta_dot: float = unbounded(0.5)  # per rad/s of pole angular velocity
 
 
 def make_cartpole_oracle(config=None) -> Agent:

@@ -40,15 +40,15 @@ class DmcCartpoleOracleConfig:
     """Swing-up gains (control per J rad/s; per m; per m/s), the capture angle (rad) and the LQR's
     diagonal state costs on (x, theta, x_dot, theta_dot) and control cost, per control step."""
 
-    energy_gain: float = unbounded(15.0)
-    k_x: float = unbounded(1.5)
-    k_x_dot: float = unbounded(1.5)
-    capture_angle: float = ranged(0.6, Range(0, math.pi))
-    q_x: float = non_negative(1.0)
-    q_theta: float = non_negative(10.0)
-    q_x_dot: float = non_negative(0.1)
-    q_theta_dot: float = non_negative(0.1)
-    r: float = positive(1.0)
+    energy_gain: float = unbounded(15.0)  # k_E of the swing-up term k_E E theta_dot cos(theta), control per J rad/s
+    k_x: float = unbounded(1.5)  # swing-up: control per m of cart position (spring to the centre)
+    k_x_dot: float = unbounded(1.5)  # swing-up: control per m/s of cart velocity (damper)
+    capture_angle: float = ranged(0.6, Range(0, math.pi))  # rad: LQR balance within this angle of upright
+    q_x: float = non_negative(1.0)  # LQR state cost on the cart position (per m^2, per control step)
+    q_theta: float = non_negative(10.0)  # LQR state cost on the pole angle (per rad^2)
+    q_x_dot: float = non_negative(0.1)  # LQR state cost on the cart velocity (per (m/s)^2)
+    q_theta_dot: float = non_negative(0.1)  # LQR state cost on the pole angular velocity (per (rad/s)^2)
+    r: float = positive(1.0)  # LQR cost on the control (per control^2, control in [-1, 1])
 
 
 @dataclasses.dataclass(frozen=True)

@@ -31,8 +31,8 @@ if TYPE_CHECKING:  # imported when an agent is built, to keep importing jarena_a
 class DmcPointMassOracleConfig:
     """Stiffness (N/m) on the position error and damping (N s/m) on the mass's velocity."""
 
-    k_p: float = unbounded(5.0)
-    k_d: float = unbounded(0.3)
+    k_p: float = unbounded(5.0)  # N/m: wanted force per metre of position error (target - mass)
+    k_d: float = unbounded(0.3)  # N s/m: wanted braking force per m/s of the mass's velocity
 
 
 @dataclasses.dataclass(frozen=True)

@@ -38,8 +38,8 @@ if TYPE_CHECKING:  # imported when an agent is built, to keep importing jarena_a
 class DmcReacherOracleConfig:
     """Closed-loop natural frequency (rad/s) and damping ratio of each joint's PD control."""
 
-    natural_frequency: float = positive(30.0)
-    damping_ratio: float = non_negative(1.0)
+    natural_frequency: float = positive(30.0)  # w (rad/s): joint torque M_ii (w^2 e_i - 2 zeta w q_dot_i)
+    damping_ratio: float = non_negative(1.0)  # zeta of that torque (1: critically damped)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -23,9 +23,10 @@ from jarena_agents.registry import register_agent
 
 @dataclasses.dataclass(frozen=True)
 class PendulumOracleConfig:
+    # k_E of the swing-up torque u = k_E (-E) theta_dot, with E (J) the energy relative to resting upright
     energy_gain: float = unbounded(2.0)
-    k_p: float = unbounded(12.0)
-    k_d: float = unbounded(2.5)
+    k_p: float = unbounded(12.0)  # N m/rad: stabilising torque per radian from upright
+    k_d: float = unbounded(2.5)  # N m s/rad: stabilising torque per rad/s of angular velocity
     capture_angle: float = ranged(0.6, Range(0, math.pi))  # rad: switch to stabilisation within this angle of upright
     kick: float = unbounded(1.0)  # torque applied when at rest away from upright
 

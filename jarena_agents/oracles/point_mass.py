@@ -22,8 +22,8 @@ from jarena_agents.registry import register_agent
 class PointMassOracleConfig:
     """Proportional gain (N/m) on the position error and derivative gain (N s/m) on the velocity."""
 
-    k_p: float = unbounded(9.0)
-    k_d: float = unbounded(5.0)
+    k_p: float = unbounded(9.0)  # N/m: force per metre of position error (goal - position), per axis
+    k_d: float = unbounded(5.0)  # N s/m: braking force per m/s of velocity, per axis
 
 
 def make_point_mass_oracle(config=None) -> Agent:

@@ -47,10 +47,10 @@ PyTree = Any
 class PlaNetConfig(online.OnlineConfig):
     """:class:`~jarena_agents.world_model.online.OnlineConfig` (model, collection) plus the planner."""
 
-    horizon: int = at_least(1, default=12)
-    samples: int = at_least(1, default=1000)
-    iterations: int = at_least(1, default=10)
-    elite_fraction: float = in_unit_interval(0.1, open_low=True)
+    horizon: int = at_least(1, default=12)  # H, plan length in agent steps, in the latent model (PlaNet's 12)
+    samples: int = at_least(1, default=1000)  # plans per CEM iteration, the current mean among them (PlaNet's 1000)
+    iterations: int = at_least(1, default=10)  # CEM iterations per act (PlaNet's 10)
+    elite_fraction: float = in_unit_interval(0.1, open_low=True)  # share kept as elites, at least 1 (PlaNet's 100)
 
 
 @struct.dataclass

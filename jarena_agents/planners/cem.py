@@ -23,7 +23,16 @@ from jarena_agents.registry import register_agent
 
 @dataclasses.dataclass(frozen=True)
 class CEMConfig(PlannerConfig):
-    """:class:`PlannerConfig` plus ``elite_fraction`` (0, 1], ``min_noise`` >= 0, ``smoothing`` in [0, 1)."""
+    """:class:`PlannerConfig` plus the elites and the refit.
+
+    Attributes:
+      elite_fraction: share of the ``samples`` kept as elites, in (0, 1]: ``round(elite_fraction * samples)``
+        plans with the highest returns, at least one.
+      min_noise: floor of the sampling standard deviation after each refit, as a fraction of the action
+        half-range (>= 0).
+      smoothing: weight of the previous mean and standard deviation in each refit, in [0, 1):
+        ``new = smoothing * old + (1 - smoothing) * elite statistic`` (0: replaced by the elites').
+    """
 
     iterations: int = at_least(1, default=4)
     elite_fraction: float = in_unit_interval(0.1, open_low=True)

@@ -23,7 +23,12 @@ from jarena_agents.registry import register_agent
 
 @dataclasses.dataclass(frozen=True)
 class MPPIConfig(PlannerConfig):
-    """:class:`PlannerConfig` plus ``temperature`` (lambda > 0, reward units)."""
+    """:class:`PlannerConfig` plus the MPPI temperature.
+
+    Attributes:
+      temperature: lambda > 0 of the weights ``softmax(R / temperature)``, in reward units (returns summed over
+        the horizon): low approaches the best sample, high the plain average of the samples.
+    """
 
     temperature: float = positive(1.0)
 

@@ -38,20 +38,23 @@ PyTree = Any
 class PPOConfig(ArenaSchedule):
     """PPO hyperparameters (defaults: PureJaxRL's CartPole settings)."""
 
-    num_arenas: int = at_least(1, default=4)
-    rollout_length: int = at_least(1, default=128)
-    epochs: int = at_least(1, default=4)
+    num_arenas: int = at_least(1, default=4)  # arenas stepped together (auto-resetting)
+    rollout_length: int = at_least(1, default=128)  # steps of every arena collected per update
+    epochs: int = at_least(1, default=4)  # passes over each update's rollout
+    # gradient steps per epoch; the rollout's transitions (or unroll_length segments) are split evenly among them
     minibatches: int = at_least(1, default=4)
-    learning_rate: float = positive(2.5e-4)
-    anneal_lr: bool = True
+    learning_rate: float = positive(2.5e-4)  # Adam's (eps 1e-5), at the start if anneal_lr
+    anneal_lr: bool = True  # decay the learning rate linearly to 0 over the run's gradient steps
+    # environment steps of a run: total_steps // (num_arenas * rollout_length) updates (at least 1)
     total_steps: int = at_least(1, default=500_000)
-    discount: float = in_unit_interval(0.99, open_low=True)
-    gae_lambda: float = in_unit_interval(0.95)
+    discount: float = in_unit_interval(0.99, open_low=True)  # gamma
+    gae_lambda: float = in_unit_interval(0.95)  # lambda of GAE (0: one-step TD advantages, 1: Monte Carlo)
+    # eps: the probability ratio is clipped to [1 - eps, 1 + eps] in the surrogate objective
     clip_epsilon: float = positive(0.2)
-    entropy_coef: float = non_negative(0.01)
-    value_coef: float = non_negative(0.5)
+    entropy_coef: float = non_negative(0.01)  # weight of the policy entropy bonus in the loss
+    value_coef: float = non_negative(0.5)  # weight of the value loss ((value - return)^2 / 2) in the loss
     max_grad_norm: float | None = positive(0.5)  # None: no clipping (Brax's default)
-    hidden: tuple = (64, 64)
+    hidden: tuple = (64, 64)  # widths of the policy MLP's hidden layers (and the value MLP's by default)
     value_hidden: tuple | None = None  # the value MLP's layers (default: ``hidden``)
     box_policy: str = "gaussian"  # or "tanh_normal" (Brax's): see networks.ActorCritic
     activation: str = "tanh"  # hidden layers: tanh, relu or swish (Brax's)
@@ -60,7 +63,7 @@ class PPOConfig(ArenaSchedule):
     cnn: tuple = ((32, 8, 4), (64, 4, 2), (64, 3, 1))
     cnn_padding: str = "VALID"  # or "SAME"
     normalize_observations: bool = False  # normalises the vector observations (never the images)
-    reward_scale: float = positive(1.0)
+    reward_scale: float = positive(1.0)  # rewards are multiplied by this for GAE (reported returns stay unscaled)
     # None: GAE over the whole rollout with the acting parameters, then transitions are shuffled
     # (PureJaxRL). An int U: the rollout is cut into U-step segments, segments are shuffled, and each
     # minibatch recomputes GAE over its segments with the current value network (Brax's PPO).

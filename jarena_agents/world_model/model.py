@@ -43,20 +43,25 @@ class WorldModelConfig:
     """World-model sizes and loss weights (defaults: DreamerV3's "S" model is deter 512, hidden 512, cnn
     depth 32; its 32 x 32 latents, 255 bins, free bits 1, scales 0.5 / 0.1, lr 1e-4, clip 1000)."""
 
-    deter: int = at_least(1, default=512)
-    stoch: int = at_least(1, default=32)
-    classes: int = at_least(2, default=32)
+    deter: int = at_least(1, default=512)  # D, the width of the GRU's deterministic state
+    stoch: int = at_least(1, default=32)  # S, the categorical variables of the stochastic state
+    classes: int = at_least(2, default=32)  # K, the classes of each of them (the features are D + S K wide)
+    # width of the hidden layers of the RSSM (GRU input, prior, posterior), of the vector encoder and decoder, of
+    # the reward and continue heads, and of dreamer's actor and critic
     hidden: int = at_least(1, default=512)
     layers: int = at_least(1, default=2)  # hidden layers of the vector encoder, decoder and heads
-    cnn_depth: int = at_least(1, default=32)
+    cnn_depth: int = at_least(1, default=32)  # channels of the first image convolution, doubled at each next one
     cnn_layers: int = at_least(1, default=4)  # stride-2 convolutions: 64 x 64 -> 4 x 4
+    # two-hot bins of the reward head (and of dreamer's critic), equally spaced in symlog space over [-20, 20]
     bins: int = at_least(2, default=255)
+    # fraction of the uniform distribution mixed into the latents' categoricals (prior and posterior)
     unimix: float = in_unit_interval(0.01, open_high=True)
+    # free bits: each step's KL (nats, summed over the S variables) counts as at least this, with no gradient below
     free_nats: float = non_negative(1.0)
-    dyn_scale: float = non_negative(0.5)
-    rep_scale: float = non_negative(0.1)
-    model_learning_rate: float = positive(1e-4)
-    model_grad_clip: float = positive(1000.0)
+    dyn_scale: float = non_negative(0.5)  # weight of KL[sg(posterior) || prior]: trains the prior
+    rep_scale: float = non_negative(0.1)  # weight of KL[posterior || sg(prior)]: trains the posterior
+    model_learning_rate: float = positive(1e-4)  # Adam's (eps 1e-8), for the world model's parameters
+    model_grad_clip: float = positive(1000.0)  # global-norm clip of the world model's gradients
 
 
 @struct.dataclass

@@ -36,16 +36,19 @@ MODEL_METRICS = ("model_loss", "observation_loss", "reward_loss", "continue_loss
 class OnlineConfig(WorldModelConfig, ArenaSchedule):
     """:class:`WorldModelConfig` plus data collection and model training."""
 
-    num_arenas: int = at_least(1, default=8)
+    num_arenas: int = at_least(1, default=8)  # arenas stepped together, each keeping its own part of the buffer
     rollout_length: int = at_least(1, default=100)  # environment steps per arena per update
     train_steps: int = at_least(1, default=100)  # gradient steps per update (unless replay_ratio is set)
     # DreamerV3's train ratio: replayed steps (batch_size x sequence_length per gradient step) per agent step
     # collected; when set it fixes the gradient steps per update (see ``gradient_steps``), else train_steps does
     replay_ratio: float | None = positive(None)
-    batch_size: int = at_least(1, default=16)
+    batch_size: int = at_least(1, default=16)  # sequences per gradient step
+    # L, transitions of each sampled sequence (consecutive steps of one episode; the model reads L + 1 steps)
     sequence_length: int = at_least(2, default=50)
+    # replay capacity in transitions, rounded down to a multiple of num_arenas (with a warning)
     buffer_size: int = at_least(1, default=1_000_000)
     learning_starts: int = at_least(0, default=5_000)  # environment steps of uniform actions first
+    # environment steps of a run: total_steps // (num_arenas * rollout_length) updates (at least 1)
     total_steps: int = at_least(1, default=1_000_000)
     exploration_noise: float = non_negative(0.3)  # fraction of the action half-range (planet)
 
