@@ -8,6 +8,7 @@ from jarena.core.agent import Agent
 from jarena_agents import basic, oracles, planners  # noqa: F401  (registers the built-in agents)
 from jarena_agents.bc import agent as _bc  # noqa: F401
 from jarena_agents.config import ConfigError, make_config
+from jarena_agents.diffusion import agent as _diffusion  # noqa: F401
 from jarena_agents.dreamer import agent as _dreamer  # noqa: F401
 from jarena_agents.planet import agent as _planet  # noqa: F401
 from jarena_agents.ppo import agent as _ppo  # noqa: F401

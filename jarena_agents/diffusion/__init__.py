@@ -1,0 +1,1 @@
+"""Diffusion Policy: a trainable agent that generates action sequences by denoising, learnt from a TrajectoryDataset."""
