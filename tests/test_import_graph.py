@@ -64,3 +64,15 @@ def test_the_checker_finds_a_circle():
 @pytest.mark.parametrize("package", ["jarena", "jarena_agents"])
 def test_no_module_imports_itself_back(package):
     assert cycles(module_graph(package)) == []
+
+
+def test_importing_the_library_does_not_start_jax():
+    """A multi-process run must call ``jax.distributed.initialize`` before JAX's backend starts: importing
+    jarena, its agents and its command line may not start it (e.g. with a ``jnp`` constant at module level)."""
+    import subprocess
+    import sys
+
+    code = ("import jax._src.xla_bridge as xb, jarena, jarena_agents, jarena.cli; "
+            "assert not xb._backends, 'importing jarena started JAX backends'")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr[-2000:]

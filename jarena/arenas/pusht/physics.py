@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from jarena.arenas.pusht import geometry
@@ -120,7 +121,8 @@ def place(pusher: jax.Array, pose: jax.Array, params: PushTParams) -> PushTState
                       impulses=jnp.zeros((NUM_CONTACTS,), jnp.float32))
 
 
-_FACE_NORMALS = jnp.array([[-1.0, 0.0], [1.0, 0.0], [0.0, -1.0], [0.0, 1.0]], jnp.float32)
+# numpy, not jnp: a jnp constant would start JAX's backend at import, before a multi-process run can join
+_FACE_NORMALS = np.array([[-1.0, 0.0], [1.0, 0.0], [0.0, -1.0], [0.0, 1.0]], np.float32)
 
 
 def _pusher_contacts(pusher, centre, rot, params):
@@ -137,7 +139,7 @@ def _pusher_contacts(pusher, centre, rot, params):
     # a centre inside a box leaves by the face of least depth
     depths = jnp.concatenate([local - low, high - local], -1)[:, jnp.array([0, 2, 1, 3])]  # x0, x1, y0, y1
     depth = jnp.min(depths, -1)
-    face_normal = _FACE_NORMALS[jnp.argmin(depths, -1)]
+    face_normal = jnp.asarray(_FACE_NORMALS)[jnp.argmin(depths, -1)]
     normal = jnp.where(outside[:, None], delta / distance[:, None], face_normal)  # from the box to the disc
     point = jnp.where(outside[:, None], closest, local + depth[:, None] * face_normal)
     separation = jnp.where(outside, distance, -depth) - params.pusher_radius
