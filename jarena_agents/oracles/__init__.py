@@ -9,4 +9,5 @@ from jarena_agents.oracles import (  # noqa: F401  (registers the oracles)
     dmc_reacher,
     pendulum,
     point_mass,
+    raven,
 )

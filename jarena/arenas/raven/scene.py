@@ -1,0 +1,231 @@
+"""The tabletop scene: Ravens' objects as MuJoCo boxes, a table, and a floating suction cup, as one MJX model.
+
+Each object is a body of box geoms (:class:`Shape`), built from the sizes of Ravens' URDF files. Movable objects
+have a free joint; fixed ones (Ravens' ``fixed`` category, e.g. the insertion fixture) are mocap bodies, so that
+each episode places them through ``mjx.Data.mocap_pos`` without changing the model. The suction cup is a mocap
+body without collisions, and every movable object has a weld equality to it, inactive until the cup grasps
+the object (:mod:`.physics`).
+
+Contacts are kept few: movable objects collide with the table, the fixed objects and each other (``contype`` 1,
+``conaffinity`` 1); the table and fixed objects (``contype`` 0) never collide among themselves; the cup collides
+with nothing (its touch is found by a ray, :mod:`.geometry`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import mujoco
+
+TABLE_RGB = (0.2, 0.2, 0.2)
+"""The table's colour: Ravens' workspace plane (dark grey)."""
+CUP_HEIGHT = 0.029
+"""The suction head's length, metres (Ravens' suction head, tip to mount)."""
+
+COLORS = {
+    "blue": (78.0, 121.0, 167.0), "red": (255.0, 87.0, 89.0), "green": (89.0, 169.0, 79.0),
+    "orange": (242.0, 142.0, 43.0), "yellow": (237.0, 201.0, 72.0), "purple": (176.0, 122.0, 161.0),
+    "pink": (255.0, 157.0, 167.0), "cyan": (118.0, 183.0, 178.0), "brown": (156.0, 117.0, 95.0),
+    "gray": (186.0, 176.0, 172.0),
+}
+"""Ravens' palette (``utils.COLORS``), 0-255."""
+
+
+def rgb(name: str) -> tuple[float, float, float]:
+    """A colour of :data:`COLORS` in [0, 1]."""
+    return tuple(c / 255.0 for c in COLORS[name])
+
+
+@dataclasses.dataclass(frozen=True)
+class Box:
+    """A box part of a shape: ``size`` its full extents (x, y, z) and ``pos`` its centre in the body frame, metres."""
+
+    size: tuple[float, float, float]
+    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Shape:
+    """An object kind.
+
+    Attributes:
+      name: a short name (``ell``).
+      boxes: the box parts, in the body frame (the body's origin is at half its height, as Ravens' URDFs).
+      extent: Ravens' ``size`` of the object for placing it (x, y, z), metres: the layout keeps a square of side
+        ``hypot(x, y)`` around it free of other objects, and its origin stands ``z / 2`` above the table.
+      mass: kilograms (movable shapes).
+      friction: sliding friction coefficient (Ravens' ``lateral_friction``).
+      fixed: whether the object is part of the scenery (Ravens' ``fixed`` objects): it never moves.
+      rgb: default colour in [0, 1].
+    """
+
+    name: str
+    boxes: tuple[Box, ...]
+    extent: tuple[float, float, float]
+    mass: float = 0.1
+    friction: float = 1.0
+    fixed: bool = False
+    rgb: tuple[float, float, float] = rgb("red")
+
+
+ELL = Shape("ell", (Box((0.08, 0.03, 0.04), (0.025, 0.0, 0.0)), Box((0.03, 0.08, 0.0399), (0.0, 0.025, 0.0))),
+            extent=(0.1, 0.1, 0.04), mass=0.1, friction=0.3, rgb=(1.0, 0.3412, 0.3490))
+"""Ravens' ``insertion/ell.urdf``: an L of two 3 cm wide arms, 8 cm long and 4 cm high, its origin at their corner."""
+
+FIXTURE = Shape("fixture", (
+    Box((0.1, 0.002, 0.04), (0.025, -0.025, 0.0)), Box((0.05, 0.002, 0.04), (0.0, 0.075, 0.0)),
+    Box((0.05, 0.002, 0.04), (0.05, 0.025, 0.0)), Box((0.002, 0.105, 0.04), (-0.025, 0.025, 0.0)),
+    Box((0.002, 0.055, 0.04), (0.025, 0.05, 0.0)), Box((0.002, 0.055, 0.04), (0.075, 0.0, 0.0))),
+    extent=(0.1, 0.1, 0.04), fixed=True, friction=0.3, rgb=(0.7294, 0.6902, 0.6745))
+"""Ravens' ``insertion/fixture.urdf``: 2 mm walls, 4 cm high, around an L channel 4.8 cm wide that holds
+:data:`ELL` with 9 mm to spare on each side (its 1 mm pad under the corner is left out)."""
+
+BLOCK = Shape("block", (Box((0.04, 0.04, 0.04)),), extent=(0.04, 0.04, 0.04), mass=0.01, friction=1.0)
+"""Ravens' ``stacking/block.urdf``: a 4 cm cube."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Item:
+    """One object of a scene: its ``name`` (unique), ``shape`` and colour (``None``: the shape's)."""
+
+    name: str
+    shape: Shape
+    rgb: tuple[float, float, float] | None = None
+
+    @property
+    def colour(self) -> tuple[float, float, float]:
+        return self.shape.rgb if self.rgb is None else self.rgb
+
+
+@dataclasses.dataclass(frozen=True)
+class PhysicsOptions:
+    """Simulation settings (static: they shape the compiled program).
+
+    Attributes:
+      timestep: seconds per physics step.
+      iterations, ls_iterations: the constraint solver's (Newton) iterations and line-search iterations.
+    """
+
+    timestep: float = 0.005
+    iterations: int = 10
+    ls_iterations: int = 10
+
+
+def _box_geom(box: Box, colour, contype: int, mass: float | None, friction: float) -> str:
+    half = " ".join(f"{s / 2:.6g}" for s in box.size)
+    pos = " ".join(f"{p:.6g}" for p in box.pos)
+    mass_attr = f' mass="{mass:.6g}"' if mass is not None else ""
+    return (f'<geom type="box" size="{half}" pos="{pos}" rgba="{colour[0]:.4g} {colour[1]:.4g} {colour[2]:.4g} 1" '
+            f'contype="{contype}" conaffinity="1" friction="{friction:.4g} 0.005 0.0001"{mass_attr}/>')
+
+
+def mjcf(items: tuple[Item, ...], options: PhysicsOptions) -> str:
+    """The MJCF of a scene with ``items`` (movable ones first in the model's body order)."""
+    bodies, welds = [], []
+    for i, item in enumerate(items):
+        shape = item.shape
+        # park every object apart, off the table's workspace, until an episode places it
+        parked = f"{2.0 + 0.3 * i:.3f} 2.0 {shape.extent[2] / 2:.4f}"
+        if shape.fixed:
+            geoms = "".join(_box_geom(b, item.colour, 0, None, shape.friction) for b in shape.boxes)
+            bodies.append(f'<body name="{item.name}" mocap="true" pos="{parked}">{geoms}</body>')
+        else:
+            volume = [float(np.prod(b.size)) for b in shape.boxes]
+            geoms = "".join(_box_geom(b, item.colour, 1, shape.mass * v / sum(volume), shape.friction)
+                            for b, v in zip(shape.boxes, volume, strict=True))
+            bodies.append(f'<body name="{item.name}" pos="{parked}"><freejoint name="{item.name}"/>{geoms}</body>')
+            welds.append(f'<weld name="grasp_{item.name}" body1="cup" body2="{item.name}" active="false"/>')
+    table = " ".join(f"{c:.4g}" for c in TABLE_RGB)
+    return f"""<mujoco model="raven">
+  <option timestep="{options.timestep}" iterations="{options.iterations}" ls_iterations="{options.ls_iterations}"
+          cone="pyramidal"/>
+  <worldbody>
+    <geom name="table" type="plane" size="0 0 1" rgba="{table} 1" contype="0" conaffinity="1"
+          friction="1 0.005 0.0001"/>
+    {"".join(bodies)}
+    <body name="cup" mocap="true" pos="0.5 0 0.5">
+      <geom type="cylinder" size="0.01 {CUP_HEIGHT / 2}" pos="0 0 {CUP_HEIGHT / 2}" rgba="0.18 0.51 0.77 1"
+            contype="0" conaffinity="0" mass="0.1"/>
+    </body>
+  </worldbody>
+  <equality>{"".join(welds)}</equality>
+</mujoco>"""
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Scene:
+    """A scene's model and the indices that tie its objects to the model (static numpy arrays).
+
+    Objects are numbered in ``items`` order. The drawable geoms (every box, not the cup) are listed with the
+    object each belongs to; the table is the plane ``z = 0``, object ``-1``.
+
+    Attributes:
+      items: the objects.
+      model: the MuJoCo model.
+      movable: int (M,): the objects with a free joint, in ``items`` order; weld ``k`` grasps ``movable[k]``.
+      qpos_address: int (M,): where each movable object's 7 free-joint coordinates start in ``qpos``.
+      qvel_address: int (M,): where its 6 velocities start in ``qvel``.
+      mocap: int (N,): each object's mocap index, -1 for movable objects.
+      cup: the cup's mocap index.
+      geom: int (G,): the drawable box geoms' ids; ``geom_object`` int (G,) their object; ``geom_size`` float32
+        (G, 3) half extents; ``geom_rgb`` float32 (G, 3) colours in [0, 1].
+      movable_slot: int (N,): each object's index in ``movable``, -1 for fixed objects.
+    """
+
+    items: tuple[Item, ...]
+    model: mujoco.MjModel
+    movable: np.ndarray
+    qpos_address: np.ndarray
+    qvel_address: np.ndarray
+    mocap: np.ndarray
+    cup: int
+    geom: np.ndarray
+    geom_object: np.ndarray
+    geom_size: np.ndarray
+    geom_rgb: np.ndarray
+    movable_slot: np.ndarray
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(item.name for item in self.items)
+
+    def index(self, name: str) -> int:
+        """The object named ``name``; a ``KeyError`` listing the scene's objects otherwise."""
+        if name not in self.names:
+            raise KeyError(f"the scene has no object {name!r}; it has {list(self.names)}")
+        return self.names.index(name)
+
+
+def build_scene(items: tuple[Item, ...], options: PhysicsOptions = PhysicsOptions()) -> Scene:
+    """The :class:`Scene` of ``items`` (movable objects first), its model compiled from :func:`mjcf`."""
+    names = [item.name for item in items]
+    if len(set(names)) != len(names):
+        raise ValueError(f"object names must be unique, got {names}")
+    kinds = [item.shape.fixed for item in items]
+    if kinds != sorted(kinds):
+        raise ValueError(f"list the movable objects before the fixed ones, got {names}")
+    import mujoco  # imported when a scene is built, so that importing jarena does not load MuJoCo
+
+    model = mujoco.MjModel.from_xml_string(mjcf(tuple(items), options))
+    body = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in names]
+    movable = np.array([i for i, item in enumerate(items) if not item.shape.fixed], np.int32)
+    joints = [model.body_jntadr[body[i]] for i in movable]
+    object_of_body = {b: i for i, b in enumerate(body)}
+    geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] in object_of_body]
+    slot = np.full(len(items), -1, np.int32)
+    slot[movable] = np.arange(movable.size, dtype=np.int32)
+    return Scene(
+        items=tuple(items), model=model, movable=movable,
+        qpos_address=np.array([model.jnt_qposadr[j] for j in joints], np.int32),
+        qvel_address=np.array([model.jnt_dofadr[j] for j in joints], np.int32),
+        mocap=np.array([model.body_mocapid[b] for b in body], np.int32),
+        cup=int(model.body_mocapid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "cup")]),
+        geom=np.array(geoms, np.int32),
+        geom_object=np.array([object_of_body[model.geom_bodyid[g]] for g in geoms], np.int32),
+        geom_size=np.asarray(model.geom_size[geoms], np.float32).reshape(-1, 3),
+        geom_rgb=np.asarray(model.geom_rgba[geoms, :3], np.float32).reshape(-1, 3),
+        movable_slot=slot)
