@@ -26,6 +26,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("agent")
     parser.add_argument("arena")
+    parser.add_argument("--config", default="default", help="the agent's committed config for the arena")
     parser.add_argument("--steps", type=int, default=None, help="environment steps (default: the config's)")
     parser.add_argument("--set", action="append", type=parse_override, default=[], metavar="KEY=VALUE")
     parser.add_argument("--validations", type=int, default=10)
@@ -36,12 +37,13 @@ def main() -> None:
 
     start = time.perf_counter()
     arena = jarena.build_arena(args.arena)
-    config = dict(jarena.retrieve_config(args.agent, arena), **dict(args.set))
+    config = dict(jarena.retrieve_config(args.agent, arena, args.config), **dict(args.set))
     if args.steps is not None:
         config["total_steps"] = args.steps
     agent = jarena_agents.build_agent(args.agent, config)
     print(f"# {args.agent} on {args.arena}, {agent.settings.total_steps} steps, device "
-          f"{jax.devices()[0].device_kind}, jax {jax.__version__}, overrides {dict(args.set)}", flush=True)
+          f"{jax.devices()[0].device_kind}, jax {jax.__version__}, config {args.config!r}, "
+          f"overrides {dict(args.set)}", flush=True)
     result = train_and_evaluate(agent, arena, jax.random.key(args.seed), run_dir=args.run_dir, progress=False,
                                 validations=args.validations, checkpoint_every=1, stop_after_chunks=args.chunks,
                                 eval_videos=0)
