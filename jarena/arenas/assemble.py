@@ -69,11 +69,7 @@ def assemble(builder: str, domains: Mapping[str, Domain], domain: str, task: Any
         tools.append(dom.tool())
 
     dynamics = dom.dynamics_for(task_call.name)
-    extra = {}
-    if eval_episodes is not None:
-        extra["num_eval_episodes"] = int(eval_episodes)
-    if val_episodes is not None:
-        extra["num_val_episodes"] = int(val_episodes)
+    extra = split_sizes(eval_episodes, val_episodes)
     observer = dom.sensor_for(task_call.name)
     if sensor is not None:
         observer = sensor(observer, dynamics)
@@ -86,6 +82,17 @@ def assemble(builder: str, domains: Mapping[str, Domain], domain: str, task: Any
         raise ArenaStringError(f"action tools do not fit {builder} domain {domain!r} "
                                f"(control {dynamics.control_spec!r}): {e}") from None
     return arena
+
+
+def split_sizes(eval_episodes: int | None, val_episodes: int | None) -> dict[str, int]:
+    """:class:`Arena` keyword arguments for the eval and validation split sizes an arena string gives (each left
+    out when not given, so that the arena's defaults hold)."""
+    sizes = {}
+    if eval_episodes is not None:
+        sizes["num_eval_episodes"] = int(eval_episodes)
+    if val_episodes is not None:
+        sizes["num_val_episodes"] = int(val_episodes)
+    return sizes
 
 
 def variants(builder: str, domains: Mapping[str, Domain]) -> list[tuple[str, tuple[str, ...]]]:

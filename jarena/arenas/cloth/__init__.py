@@ -34,6 +34,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jarena.arenas.assemble import split_sizes
 from jarena.arenas.cloth import camera as camera_lib
 from jarena.arenas.cloth import tasks as tasks_lib
 from jarena.arenas.cloth import tools as tools_lib
@@ -169,11 +170,7 @@ def build(domain: str = "square_fabric", task: str = "flattening", initial: str 
     tasks = [TASKS[task](mesh, initial), time_limit(horizon * steps)]
     if wrap is not None:
         tasks.append(make_task(wrap))
-    extra = {}
-    if eval_episodes is not None:
-        extra["num_eval_episodes"] = int(eval_episodes)
-    if val_episodes is not None:
-        extra["num_val_episodes"] = int(val_episodes)
+    extra = split_sizes(eval_episodes, val_episodes)
     arena = Arena(dynamics=cloth_dynamics(physics, initial), sensor=camera_sensor(mesh, resolution, depth, mask),
                   task=chain(*tasks), tool=tool, name=f"cloth-{domain}-{task}", auto_reset=auto_reset, **extra)
     try:

@@ -29,6 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jarena.arenas.assemble import split_sizes
 from jarena.arenas.pusht import geometry
 from jarena.arenas.pusht import physics as physics_lib
 from jarena.arenas.pusht import render as render_lib
@@ -143,11 +144,7 @@ def build(obs: str = "image", resolution: int = 96, time_limit: int = TIME_LIMIT
     tasks = [push_t(), time_limit_task(time_limit)]
     if wrap is not None:
         tasks.append(make_task(wrap))
-    extra = {}
-    if eval_episodes is not None:
-        extra["num_eval_episodes"] = int(eval_episodes)
-    if val_episodes is not None:
-        extra["num_val_episodes"] = int(val_episodes)
+    extra = split_sizes(eval_episodes, val_episodes)
     arena = Arena(dynamics=dynamics(substeps, iterations), sensor=sensor(obs, resolution), task=chain(*tasks),
                   tool=make_tool(action) if action is not None else Arena.tool, name=f"pusht-{obs}",
                   auto_reset=auto_reset, **extra)
