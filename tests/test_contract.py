@@ -11,7 +11,7 @@ import jax
 import pytest
 
 import jarena
-from jarena.testing import CHECKS
+from jarena.testing import check_arena
 
 MUJOCO_SAMPLE = ["dmc|domain:point_mass,task:easy"]
 LISTED = jarena.list_arenas() if os.environ.get("JARENA_FULL_CONTRACT") else (
@@ -34,13 +34,7 @@ def test_arena_passes_every_contract_check(arena_string):
     """Every check on one built arena, so that the checks share its compiled reset, step and rollout (the
     MJX and cloth programs compile in tens of seconds each); the failure names every check that failed."""
     arena = jarena.build_arena(arena_string)
-    failed = []
-    for check in CHECKS:
-        try:
-            check(arena, jax.random.key(0))
-        except AssertionError as e:
-            failed.append(f"{check.__name__}: {e}")
-    assert not failed, "\n".join(failed)
+    check_arena(arena)
 
 
 def test_checker_catches_a_broken_arena():
@@ -63,3 +57,5 @@ def test_checker_catches_a_broken_arena():
     from jarena.testing import check_determinism
     with pytest.raises(AssertionError):
         check_determinism(broken, jax.random.key(0))
+    with pytest.raises(AssertionError, match="check_determinism: "):
+        check_arena(broken)

@@ -254,7 +254,14 @@ CHECKS = (check_jit_consistency, check_no_retrace, check_vmap, check_determinism
 
 
 def check_arena(arena: Arena, key: jax.Array | None = None) -> None:
-    """Runs every contract check on ``arena``; raises ``AssertionError`` on the first failure."""
+    """Runs every contract check on ``arena`` (they share its compiled programs); raises one ``AssertionError``
+    that names each check that failed and why."""
     key = jax.random.key(0) if key is None else key
+    failed = []
     for check in CHECKS:
-        check(arena, key)
+        try:
+            check(arena, key)
+        except AssertionError as e:
+            failed.append(f"{check.__name__}: {e}")
+    if failed:
+        raise AssertionError("\n".join(failed))

@@ -18,7 +18,7 @@ import jarena
 from jarena.arenas import pusht
 from jarena.arenas.pusht import geometry, physics, render
 from jarena.building.grammar import ArenaStringError
-from jarena.testing import CHECKS
+from jarena.testing import check_arena
 from jarena.testing.contract import _programs
 
 ARENA = "pusht|obs:image,resolution:32,time_limit:20"
@@ -30,13 +30,7 @@ def arena():
 
 
 def test_image_arena_passes_every_contract_check(arena):
-    failed = []
-    for check in CHECKS:
-        try:
-            check(arena, jax.random.key(0))
-        except AssertionError as e:
-            failed.append(f"{check.__name__}: {e}")
-    assert not failed, "\n".join(failed)
+    check_arena(arena)
 
 
 def _step_from(arena, pusher, pose, target):
