@@ -9,5 +9,6 @@ from jarena_agents.oracles import (  # noqa: F401  (registers the oracles)
     dmc_reacher,
     pendulum,
     point_mass,
+    pusht,
     raven,
 )
