@@ -284,7 +284,7 @@ def arena_list(builder: str) -> str:
 
 AGENT_PAGES = {
     "ppo": "agents/ppo.md", "sac": "agents/sac.md", "bc": "agents/bc.md", "diffusion": "agents/diffusion.md",
-    "dreamer": "agents/dreamer.md",
+    "dreamer": "agents/dreamer.md", "transporter": "agents/transporter.md",
     "planet": "agents/planet.md", "cem": "agents/planners.md", "mppi": "agents/planners.md",
     "predictive_sampling": "agents/planners.md", "random": "agents/index.md", "no_op": "agents/index.md",
 }

@@ -15,6 +15,7 @@ from jarena_agents.ppo import agent as _ppo  # noqa: F401
 from jarena_agents.registry import AGENTS, build_agent, list_agents, register_agent
 from jarena_agents.sac import agent as _sac  # noqa: F401
 from jarena_agents.trainable import TrainableAgent
+from jarena_agents.transporter import agent as _transporter  # noqa: F401
 
 __all__ = ["AGENTS", "Agent", "ConfigError", "build_agent", "list_agents", "make_config", "register_agent",
            "TrainableAgent"]

@@ -1,0 +1,1 @@
+"""Transporter Networks: a trainable pick-and-place agent over top-down images, learnt from a TrajectoryDataset."""
