@@ -21,6 +21,17 @@ from typing import Any
 import yaml
 
 
+def select_arg(text: str) -> str:
+    """``--select``: ``best``, ``last`` or ``best:<metric>``, checked as the argument is parsed."""
+    from jarena.training import selection
+
+    try:
+        selection(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    return text
+
+
 def parse_override(text: str) -> tuple[str, Any]:
     """``"key=value"`` -> ``(key, value)``, the value read as YAML (an argparse ``type`` for config overrides)."""
     if "=" not in text:
@@ -352,9 +363,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", default="default", help="config name under configs/<agent>/<arena>/")
     p.add_argument("--set", action="append", type=parse_override, metavar="KEY=VALUE",
                    help="override a config key (repeatable)")
-    p.add_argument("--select", default="best", choices=["best", "last"],
+    p.add_argument("--select", default="best", type=select_arg, metavar="best|last|best:METRIC",
                    help="which policy the final evaluation runs: the one with the best validation return (ties: "
-                        "the latest) or the last one")
+                        "the latest), the last one, or the best by a validation.csv column (e.g. "
+                        "best:success_rate, best:max_coverage_mean)")
     p.add_argument("--videos", type=int, default=2, metavar="N",
                    help="film the first N eval episodes into RUN_DIR/videos (0: none); written after the results, "
                         "so a missing encoder or renderer costs only the videos")
@@ -377,9 +389,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a config key (repeatable)")
     p.add_argument("--checkpoint", default=None, metavar="RUN_DIR",
                    help="evaluate a training run's policy (see --select)")
-    p.add_argument("--select", default="best", choices=["best", "last"],
-                   help="with --checkpoint: the run's best validated policy (what `jarena train` evaluated) or "
-                        "its latest checkpoint")
+    p.add_argument("--select", default="best", type=select_arg, metavar="best|last|best:METRIC",
+                   help="with --checkpoint: the run's best validated policy (what `jarena train` evaluated, "
+                        "whichever rule kept it) or its latest checkpoint")
     p.add_argument("--json", default=None, help="also write the summary and per-episode results to this file")
     p.add_argument("--videos", type=int, default=0, metavar="N", help="film the first N episodes (0: none)")
     p.add_argument("--video-dir", default="videos", help="folder for --videos")
@@ -430,7 +442,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a config key (repeatable)")
     p.add_argument("--checkpoint", default=None, metavar="RUN_DIR",
                    help="film a training run's policy (see --select)")
-    p.add_argument("--select", default="best", choices=["best", "last"],
+    p.add_argument("--select", default="best", type=select_arg, metavar="best|last|best:METRIC",
                    help="with --checkpoint: the run's best validated policy or its latest checkpoint")
     p.add_argument("--width", type=int, default=320, help="frame width in pixels (per episode)")
     p.add_argument("--height", type=int, default=240, help="frame height in pixels (per episode)")

@@ -48,14 +48,19 @@ class Selection:
     """A rule for the policy ``train_and_evaluate`` evaluates.
 
     Attributes:
-      replaces: ``(validation_return, best_so_far) -> bool``: whether a newly validated policy replaces
-        the kept one (``best_so_far`` is ``None`` before the first); ``None`` keeps none (the final
-        policy is evaluated).
+      replaces: ``(value, best_so_far) -> bool``: whether a newly validated policy, whose validation has
+        ``value`` in column ``metric``, replaces the kept one (``best_so_far`` is ``None`` before the first);
+        ``None`` keeps none (the final policy is evaluated).
       description: for messages and ``--help``.
+      name: how it is asked for (``best``, ``last``, ``best:<metric>``).
+      metric: the validation column compared (``return_mean``; e.g. ``success_rate``, or an arena metric's
+        mean such as ``max_coverage_mean``).
     """
 
     replaces: Callable[[float, float | None], bool] | None
     description: str
+    name: str = "best"
+    metric: str = "return_mean"
 
 
 def _at_least_as_good(value: float, best: float | None) -> bool:
@@ -64,14 +69,23 @@ def _at_least_as_good(value: float, best: float | None) -> bool:
 
 SELECTIONS: dict[str, Selection] = {
     "best": Selection(_at_least_as_good, "the policy with the best validation return (ties: the latest)"),
-    "last": Selection(None, "the policy at the end of training"),
+    "last": Selection(None, "the policy at the end of training", "last"),
 }
 
 
 def selection(name: str) -> Selection:
+    """The :class:`Selection` named ``name``: one of :data:`SELECTIONS`, or ``best:<metric>``, the policy with the
+    highest validation ``<metric>`` (a column of ``validation.csv``: ``success_rate``, or ``<name>_mean`` for an
+    arena metric, e.g. ``best:max_coverage_mean`` on PushT)."""
+    if isinstance(name, str) and name.startswith("best:") and name[5:].isidentifier():
+        metric = name[5:]
+        return Selection(_at_least_as_good, f"the policy with the best validation {metric} (ties: the latest)",
+                         name, metric)
     if name not in SELECTIONS:
         raise ValueError(f"unknown select {name!r}; choose from "
-                         + ", ".join(f"{k} ({v.description})" for k, v in SELECTIONS.items()))
+                         + ", ".join(f"{k} ({v.description})" for k, v in SELECTIONS.items())
+                         + ", or best:<metric> (the best validation value of a validation.csv column, e.g. "
+                           "best:success_rate)")
     return SELECTIONS[name]
 
 
@@ -139,8 +153,9 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
         validates ``validations`` times; 0 disables validation).
       validations: how many times (at most) a run validates when ``validate_every`` is not given (default 10).
       select: which policy the final evaluation runs (:data:`SELECTIONS`): ``best`` (default), the policy
-        with the best validation return (ties: the latest; the final one when nothing was validated), or
-        ``last``. The choice is reported in ``evaluation.selected``, the results table, ``evaluation.json``
+        with the best validation return (ties: the latest; the final one when nothing was validated),
+        ``best:<metric>``, the best by another validation column (e.g. ``best:success_rate``), or ``last``. The
+        choice is reported in ``evaluation.selected``, the results table, ``evaluation.json``
         and the plot.
       checkpoint_every: with ``run_dir``, checkpoint every this many chunks (default: 5) under
         ``run_dir/checkpoints``; a run restarted in the same directory resumes from the latest one (saying
@@ -329,8 +344,13 @@ class _BestPolicy:
 
     def offer(self, train_state, chunk: int, row: dict) -> bool:
         """Keeps the validated policy of ``train_state`` (after ``chunk`` chunks) if the rule prefers it."""
-        if self.rule.replaces is None or not self.rule.replaces(row["return_mean"],
-                                                                 None if self.row is None else self.row["return_mean"]):
+        if self.rule.replaces is None:
+            return False
+        metric = self.rule.metric
+        if metric not in row:
+            raise ValueError(f"select {self.rule.name!r}: the validation has no column {metric!r}; its columns: "
+                             f"{', '.join(sorted(row))}")
+        if not self.rule.replaces(float(row[metric]), None if self.row is None else float(self.row[metric])):
             return False
         self.policy = distributed.fetch(self.agent.policy(train_state, self.arena.spec, True), "best policy")
         self.row, self.chunk = row, chunk
@@ -350,9 +370,11 @@ class _BestPolicy:
     def choice(self, train_state, last_row: dict | None, last_validation: dict | None):
         """``(policy, selected)``: the kept policy, or the final one when none was kept."""
         if self.policy is not None:
-            return self.policy, {"select": "best", "update": int(self.row["update"]),
-                                 "env_steps": int(self.row["env_steps"]),
-                                 "validation_return": float(self.row["return_mean"])}
+            selected = {"select": self.rule.name, "update": int(self.row["update"]),
+                        "env_steps": int(self.row["env_steps"]), "validation_return": float(self.row["return_mean"])}
+            if self.rule.metric != "return_mean":
+                selected[f"validation_{self.rule.metric}"] = float(self.row[self.rule.metric])
+            return self.policy, selected
         final_validated = (last_validation is not None and last_row is not None
                            and last_validation["update"] == last_row["update"])
         reason = "last" if self.rule.replaces is None else "last (nothing validated)"
@@ -519,12 +541,12 @@ def restore_policy(agent, arena: Arena, run_dir: str | os.PathLike, select: str 
     """The deterministic policy of a training run directory: the policy ``train_and_evaluate`` selected
     (``best``: the best validated one, kept in ``best_policy/``) or the latest checkpoint's (``last``, and
     for runs without a kept policy); a path to a checkpoints folder itself is taken as ``last``."""
-    selection(select)
+    rule = selection(select)
     if getattr(agent, "init_training", None) is None:
         raise ValueError(f"agent {agent.name!r} is not trainable and has no checkpoints")
     path = Path(run_dir)
     folder = path / "checkpoints" if (path / "checkpoints").is_dir() else path
-    if select == "best" and (path / BEST_POLICY_DIR).is_dir():
+    if rule.replaces is not None and (path / BEST_POLICY_DIR).is_dir():
         folder = path / BEST_POLICY_DIR
     checkpointer = Checkpointer(folder)
     if checkpointer.latest_step() is None:

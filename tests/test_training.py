@@ -71,6 +71,22 @@ def test_select_last_evaluates_the_final_policy(cartpole):
         train_and_evaluate(scripted_trainer(()), cartpole, jax.random.key(0), progress=False, select="worst")
 
 
+def test_select_best_by_another_validation_column(cartpole, tmp_path):
+    """``best:<metric>`` compares that column: every validation ties on ``faulted_episodes`` (0), so the latest
+    validated policy (chunk 20, which pushes left) is kept, where ``best`` keeps chunk 6's; a column the validation
+    lacks is an error naming the columns."""
+    result = train_and_evaluate(scripted_trainer((4, 6)), cartpole, jax.random.key(0), progress=False,
+                                select="best:faulted_episodes", run_dir=tmp_path, eval_videos=0)
+    assert result.selected == {"select": "best:faulted_episodes", "update": 20, "env_steps": 2000,
+                               "validation_return": result.validations[-1]["return_mean"],
+                               "validation_faulted_episodes": 0.0}
+    assert result.evaluation.summary()["return_mean"] < 50
+    assert "best:faulted_episodes, step 2000 (validation return" in result.evaluation.table()
+    with pytest.raises(ValueError, match="has no column 'no_such'; its columns: .*return_mean"):
+        train_and_evaluate(scripted_trainer(()), cartpole, jax.random.key(0), progress=False,
+                           select="best:no_such")
+
+
 def test_without_validation_the_final_policy_is_evaluated(cartpole):
     result = train_and_evaluate(scripted_trainer((20,)), cartpole, jax.random.key(0), progress=False,
                                 validate_every=0)

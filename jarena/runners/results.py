@@ -127,5 +127,7 @@ def _selected_text(selected: dict) -> str:
     """``best, step 430080 (validation return 500.0)`` or ``last, step 500736``."""
     text = f"{selected['select']}, step {int(selected['env_steps'])}"
     if selected.get("validation_return") is not None:
-        text += f" (validation return {selected['validation_return']:.1f})"
+        text += f" (validation return {selected['validation_return']:.1f}"
+        text += "".join(f", {k[len('validation_'):]} {v:.3g}" for k, v in selected.items()
+                        if k.startswith("validation_") and k != "validation_return" and v is not None) + ")"
     return text
