@@ -18,9 +18,8 @@ from collections.abc import Sequence
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from jarena_agents.networks import spatial_softmax
+from jarena_agents.networks import init_params, spatial_softmax  # noqa: F401  (init_params: the agent reads it here)
 
 GROUP_NORM_EPSILON = 1e-5
 
@@ -257,27 +256,3 @@ class ObservationEncoder(nn.Module):
                               name=f"{key}_encoder")(observation["images"][key])
                  for key in sorted(observation["images"])]
         return jnp.concatenate(parts + [observation["vector"].astype(jnp.float32)], axis=-1)
-
-
-def init_params(module: nn.Module, key: jax.Array, *example) -> dict:
-    """``module``'s parameters for inputs like ``example``: every kernel drawn from N(0, 1 / fan_in) (fan_in: the
-    product of all but its last axis, LeCun's scaling), biases 0, normalisation scales 1.
-
-    One normal draw serves every kernel, so the compiled initialiser stays small (flax's per-parameter truncated
-    normals cost seconds of compilation on a CPU for a network of this many layers).
-    """
-    shapes = jax.eval_shape(module.init, jax.random.key(0), *example)
-    leaves, treedef = jax.tree_util.tree_flatten_with_path(shapes)
-    names = [str(getattr(path[-1], "key", path[-1])) for path, _ in leaves]
-    sizes = [int(np.prod(leaf.shape, dtype=int)) if name == "kernel" else 0
-             for name, (_, leaf) in zip(names, leaves, strict=True)]
-    normal = jax.random.normal(key, (sum(sizes),), jnp.float32)
-    out, start = [], 0
-    for name, size, (_, leaf) in zip(names, sizes, leaves, strict=True):
-        if name == "kernel":
-            fan_in = int(np.prod(leaf.shape[:-1], dtype=int))
-            out.append(normal[start:start + size].reshape(leaf.shape) / np.sqrt(fan_in))
-            start += size
-        else:
-            out.append(jnp.full(leaf.shape, 1.0 if name == "scale" else 0.0, leaf.dtype))
-    return jax.tree_util.tree_unflatten(treedef, out)

@@ -42,7 +42,7 @@ from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.spec import Box
 from jarena.core.types import Info
 from jarena_agents.config import ConfigError, at_least, make_config, positive
-from jarena_agents.diffusion.networks import init_params
+from jarena_agents.networks import init_params
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
 from jarena_agents.transporter import data, se2

@@ -5,7 +5,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jarena_agents.diffusion.networks import init_params
+from jarena_agents.networks import init_params
 from jarena_agents.transporter import networks
 
 
