@@ -102,6 +102,24 @@ class ArenaSchedule:
         return max(1, self.total_steps // self.steps_per_update)
 
 
+class DatasetSchedule:
+    """The update schedule of a config trained from a dataset (``total_steps`` field): it takes no environment
+    steps, so one "step" is one gradient update."""
+
+    @property
+    def steps_per_update(self) -> int:
+        return 1
+
+    @property
+    def num_updates(self) -> int:
+        return max(1, self.total_steps)
+
+    @property
+    def step_unit(self) -> str:
+        """What ``total_steps`` counts (the ``jarena train`` command prints it)."""
+        return "gradient updates"
+
+
 def make_config(cls: type[C], overrides: Mapping[str, Any] | None = None, *, agent: str = "agent") -> C:
     """Builds ``cls`` (a dataclass) from its defaults updated by ``overrides``.
 

@@ -69,7 +69,15 @@ from jarena.data.loader import draw_indices
 from jarena.data.schema import DatasetError
 from jarena_agents import augment, networks, normalizer
 from jarena_agents.bc import losses
-from jarena_agents.config import ConfigError, at_least, in_unit_interval, make_config, non_negative, positive
+from jarena_agents.config import (
+    ConfigError,
+    DatasetSchedule,
+    at_least,
+    in_unit_interval,
+    make_config,
+    non_negative,
+    positive,
+)
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
 
@@ -79,7 +87,7 @@ MIN_VARIANCE = 1e-6  # floor of the observation variance used for normalisation 
 
 
 @dataclasses.dataclass(frozen=True)
-class BCConfig:
+class BCConfig(DatasetSchedule):
     """BC hyperparameters.
 
     Attributes:
@@ -123,20 +131,6 @@ class BCConfig:
     cnn: tuple = networks.PixelEncoder.layers
     cnn_padding: str = networks.PixelEncoder.padding
     cnn_output: str = networks.PixelEncoder.output
-
-    @property
-    def steps_per_update(self) -> int:
-        """BC takes no environment steps: one "step" is one gradient update."""
-        return 1
-
-    @property
-    def num_updates(self) -> int:
-        return max(1, self.total_steps)
-
-    @property
-    def step_unit(self) -> str:
-        """What ``total_steps`` counts (the ``jarena train`` command prints it)."""
-        return "gradient updates"
 
 
 # ---------------------------------------------------------------------------------------------- policy heads

@@ -48,7 +48,15 @@ from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.spec import Box
 from jarena.core.types import Info
 from jarena_agents import networks as shared_networks
-from jarena_agents.config import ConfigError, at_least, in_unit_interval, make_config, non_negative, positive
+from jarena_agents.config import (
+    ConfigError,
+    DatasetSchedule,
+    at_least,
+    in_unit_interval,
+    make_config,
+    non_negative,
+    positive,
+)
 from jarena_agents.diffusion import data, networks, schedule
 from jarena_agents.diffusion.networks import ObservationEncoder, TemporalUnet, center_offsets, crop, random_offsets
 from jarena_agents.registry import register_agent
@@ -58,7 +66,7 @@ PyTree = Any
 
 
 @dataclasses.dataclass(frozen=True)
-class DiffusionConfig:
+class DiffusionConfig(DatasetSchedule):
     """Diffusion Policy hyperparameters.
 
     Attributes:
@@ -119,20 +127,6 @@ class DiffusionConfig:
     use_ema: bool = True
     ema_power: float = positive(0.75)
     ema_max_decay: float = in_unit_interval(0.9999)
-
-    @property
-    def steps_per_update(self) -> int:
-        """No environment steps: one "step" is one gradient update."""
-        return 1
-
-    @property
-    def num_updates(self) -> int:
-        return max(1, self.total_steps)
-
-    @property
-    def step_unit(self) -> str:
-        """What ``total_steps`` counts (the ``jarena train`` command prints it)."""
-        return "gradient updates"
 
 
 def check_config(cfg: DiffusionConfig) -> None:

@@ -41,7 +41,7 @@ from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.spec import Box
 from jarena.core.types import Info
-from jarena_agents.config import ConfigError, at_least, make_config, positive
+from jarena_agents.config import ConfigError, DatasetSchedule, at_least, make_config, positive
 from jarena_agents.networks import init_params
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
@@ -54,7 +54,7 @@ COLOR_KEY, HEIGHT_KEY = "rgb", "height"
 
 
 @dataclasses.dataclass(frozen=True)
-class TransporterConfig:
+class TransporterConfig(DatasetSchedule):
     """Transporter hyperparameters.
 
     Attributes:
@@ -81,20 +81,6 @@ class TransporterConfig:
     learning_rate: float = positive(1e-4)
     total_steps: int = at_least(1, default=40_000)
     augment: bool = True
-
-    @property
-    def steps_per_update(self) -> int:
-        """No environment steps: one "step" is one gradient update."""
-        return 1
-
-    @property
-    def num_updates(self) -> int:
-        return max(1, self.total_steps)
-
-    @property
-    def step_unit(self) -> str:
-        """What ``total_steps`` counts (the ``jarena train`` command prints it)."""
-        return "gradient updates"
 
 
 def check_config(cfg: TransporterConfig) -> None:
