@@ -1,6 +1,6 @@
 """``oracle_raven``: Ravens' scripted demonstrator for the ``raven`` tabletop arenas (``Task._discrete_oracle``).
 
-Each action, from the privileged state (object poses, the goal, the true heightmap's object mask):
+Each action, from the privileged state (object poses, the goal's current stage, the true heightmap's object mask):
 
 1. objects that already match a target they may go to are set aside with that target (matching without
    replacement, in object order, as Ravens does);
@@ -24,7 +24,7 @@ import jax
 import jax.numpy as jnp
 
 from jarena.arenas.raven import heightmap, poses
-from jarena.arenas.raven.scoring import Goal, goal_state, heading_error, planar_poses
+from jarena.arenas.raven.scoring import Goal, current_goal, goal_state, heading_error, planar_poses
 from jarena.core.agent import Agent
 from jarena_agents.basic import SpecState
 from jarena_agents.config import make_config
@@ -97,12 +97,14 @@ def make_raven_oracle(config=None) -> Agent:
         batch = info.episode.shape
         count = math.prod(batch)
 
-        def one(phys, goal, pos_eps, rot_eps, episode):
-            view = heightmap.render(scene, phys.data.geom_xpos, phys.data.geom_xmat)
-            return choose(planar_poses(phys), goal, view.object, pos_eps, rot_eps, jax.random.fold_in(key, episode))
+        def one(phys, goal, stage, pos_eps, rot_eps, episode):
+            view = heightmap.render(scene, phys.data.geom_xpos, phys.data.geom_xmat, phys.geom_size, phys.geom_rgb)
+            return choose(planar_poses(phys), current_goal(goal, stage), view.object, pos_eps, rot_eps,
+                          jax.random.fold_in(key, episode))
 
         flat = jax.tree_util.tree_map(lambda x: x.reshape((count,) + x.shape[len(batch):]),
-                                      (physics, scoring.goal, scoring.pos_eps, scoring.rot_eps, info.episode))
+                                      (physics, scoring.goal, scoring.stage, scoring.pos_eps, scoring.rot_eps,
+                                       info.episode))
         actions = jax.vmap(one)(*flat)
         return actions.reshape(batch + (5,)), state
 

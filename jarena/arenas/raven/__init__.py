@@ -4,7 +4,8 @@ Builder ``raven``::
 
     raven|task:block-insertion
 
-- ``task``: a Ravens task (:data:`.tasks.TASKS`): ``block-insertion``.
+- ``task``: a Ravens task (:data:`.tasks.TASKS`): ``block-insertion``, ``place-red-in-green``,
+  ``align-box-corner``, ``stack-block-pyramid``, ``towers-of-hanoi``.
 - observations (:mod:`.heightmap`): Ravens' top-down orthographic heightmap of the workspace (x in [0.25, 0.75] m,
   y in [-0.5, 0.5] m, 3.125 mm per pixel): ``rgb`` uint8 (320, 160, 3) and ``height`` float32 (320, 160) metres.
 - actions (:mod:`.primitive`): float32 (5,) ``(pick_row, pick_col, place_row, place_col, place_yaw)``, one
@@ -13,8 +14,8 @@ Builder ``raven``::
   ``timestep`` (seconds, default 0.005), ``substeps`` physics steps per control step of the cup (4), ``settle``
   control steps after each place (8) and the constraint solver's ``iterations`` (10). Fewer iterations or
   coarser steps throw blocks dropped on the fixture's 2 mm walls (see ``docs/arenas/raven.md``).
-- scoring (:mod:`.scoring`): Ravens' pose matching with partial credit; an episode's rewards add up to at most
-  1, success when they pass 0.99; ``horizon`` actions per episode (Ravens' ``max_steps`` by default).
+- scoring (:mod:`.scoring`): Ravens' pose matching in stages with partial credit; an episode's rewards add up to
+  at most 1, success when they pass 0.99; ``horizon`` actions per episode (Ravens' ``max_steps`` by default).
 - oracles read ``arena.privileged(state)``: the physics (``.physics``, :class:`.physics.RavenPhysics`, with its
   scene) and the goal (:func:`.scoring.goal_state` of ``.task``).
 """
@@ -53,7 +54,8 @@ def heightmap_sensor(scene: Scene) -> Sensor:
                                                    jnp.float32))
 
     def observe(physics: RavenPhysics, params):
-        view = heightmap.render(scene, physics.data.geom_xpos, physics.data.geom_xmat)
+        view = heightmap.render(scene, physics.data.geom_xpos, physics.data.geom_xmat, physics.geom_size,
+                                physics.geom_rgb)
         return {"rgb": view.rgb, "height": view.height}
 
     return Sensor(observe=observe, spec=spec, name="heightmap(320x160)")
@@ -62,10 +64,11 @@ def heightmap_sensor(scene: Scene) -> Sensor:
 def _renderer(scene: Scene):
     """Host frames for videos: the heightmap's colours seen from above with +x up (y to the left), scaled by nearest
     pixels to fit the frame, centred on black."""
-    draw = jax.jit(lambda xpos, xmat: heightmap.render(scene, xpos, xmat).rgb)
+    draw = jax.jit(lambda xpos, xmat, size, colour: heightmap.render(scene, xpos, xmat, size, colour).rgb)
 
     def render(physics: RavenPhysics, params=None, *, width: int = 320, height: int = 240, **_):
-        rgb = np.asarray(draw(physics.data.geom_xpos, physics.data.geom_xmat)).transpose(1, 0, 2)[::-1, ::-1]
+        rgb = np.asarray(draw(physics.data.geom_xpos, physics.data.geom_xmat, physics.geom_size,
+                              physics.geom_rgb)).transpose(1, 0, 2)[::-1, ::-1]
         scale = min(height / rgb.shape[0], width / rgb.shape[1])
         rows, cols = max(int(rgb.shape[0] * scale), 1), max(int(rgb.shape[1] * scale), 1)
         image = rgb[np.arange(rows) * rgb.shape[0] // rows][:, np.arange(cols) * rgb.shape[1] // cols]

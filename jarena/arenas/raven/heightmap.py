@@ -62,21 +62,24 @@ class Heightmap:
 
 def window(scene: Scene) -> int:
     """The side, in pixels, of the square around a box's centre that holds every pixel it can cover in any
-    orientation (its diagonal, and a pixel for rounding)."""
+    orientation (its diagonal, and a pixel for rounding; a resizable shape's boxes are at most the scene's)."""
     diagonal = 2.0 * float(np.max(np.linalg.norm(scene.geom_size, axis=-1)))
     return int(np.ceil(diagonal / PIXEL_SIZE)) + 2
 
 
-def render(scene: Scene, geom_xpos: jax.Array, geom_xmat: jax.Array) -> Heightmap:
+def render(scene: Scene, geom_xpos: jax.Array, geom_xmat: jax.Array, geom_size: jax.Array | None = None,
+           geom_rgb: jax.Array | None = None) -> Heightmap:
     """The heightmap of a scene whose geoms are at ``geom_xpos`` (ngeom, 3) and ``geom_xmat`` (ngeom, 9) (an
-    ``mjx.Data``'s, after kinematics); the suction cup is not drawn.
+    ``mjx.Data``'s, after kinematics), its drawable boxes of half extents ``geom_size`` (G, 3) and colours
+    ``geom_rgb`` (G, 3) (``None``: the scene's; a :class:`.physics.RavenPhysics` holds the episode's); the
+    suction cup is not drawn.
 
     Each box casts rays only through the pixels of a square around its centre (:func:`window`), and the highest
     hit wins each pixel (ties to the box listed last), so the work grows with the boxes' area, not the image's.
     """
     geoms = jnp.asarray(scene.geom)
     pos, mat = geom_xpos[geoms], geom_xmat[geoms].reshape(-1, 3, 3)
-    size = jnp.asarray(scene.geom_size)
+    size = jnp.asarray(scene.geom_size if geom_size is None else geom_size, jnp.float32)
     side = window(scene)
     offsets = jnp.arange(side) - side // 2
     centre = jnp.round(world_to_pixel(pos[:, :2])).astype(jnp.int32)  # (G, 2)
@@ -97,7 +100,8 @@ def render(scene: Scene, geom_xpos: jax.Array, geom_xmat: jax.Array) -> Heightma
     wins = hit & (height >= top[jnp.minimum(flat, ROWS * COLS - 1)]) & (height > 0)
     box = jnp.full(ROWS * COLS, -1, jnp.int32).at[jnp.where(wins, flat, ROWS * COLS).reshape(-1)].max(
         box_id.reshape(-1), mode="drop")
-    colours = jnp.concatenate([jnp.asarray(scene.geom_rgb), jnp.asarray([TABLE_RGB], jnp.float32)])
+    colours = jnp.concatenate([jnp.asarray(scene.geom_rgb if geom_rgb is None else geom_rgb, jnp.float32),
+                               jnp.asarray([TABLE_RGB], jnp.float32)])
     rgb = jnp.round(colours[box] * 255.0).astype(jnp.uint8)  # box -1 takes the last row: the table
     objects = jnp.where(box >= 0, jnp.asarray(scene.geom_object)[box], -1)
     height = jnp.clip(top, BOUNDS[2][0], BOUNDS[2][1])

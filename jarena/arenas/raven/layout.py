@@ -23,14 +23,16 @@ def border() -> jax.Array:
     return jnp.asarray(mask)
 
 
-def window_pixels(shape: Shape) -> int:
-    """The side of the square kept free around an object's pixel: its extent's diagonal in pixels (rounded)."""
-    return int(np.round(np.hypot(shape.extent[0], shape.extent[1]) / heightmap.PIXEL_SIZE))
+def window_pixels(extent) -> jax.Array:
+    """int32 (): the side of the square kept free around an object's pixel: the diagonal of its ``extent`` (x, y,
+    z) metres, in pixels (rounded)."""
+    extent = jnp.asarray(extent, jnp.float32)
+    return jnp.round(jnp.hypot(extent[0], extent[1]) / heightmap.PIXEL_SIZE).astype(jnp.int32)
 
 
-def free_pixels(taken: jax.Array, window: int) -> jax.Array:
+def free_pixels(taken: jax.Array, window) -> jax.Array:
     """bool (ROWS, COLS): pixels whose ``window x window`` square (centred as OpenCV's erosion centres it) holds no
-    ``taken`` pixel; squares reaching past the image count only the pixels inside."""
+    ``taken`` pixel; squares reaching past the image count only the pixels inside. ``window`` may be traced."""
     before = window // 2
     after = window - 1 - before
     taken = jax.lax.optimization_barrier(taken.astype(jnp.int32))  # a constant (the border alone) is not folded
@@ -43,41 +45,66 @@ def free_pixels(taken: jax.Array, window: int) -> jax.Array:
     return inside == 0
 
 
-def footprint(shape: Shape, pos: jax.Array, quat: jax.Array) -> jax.Array:
-    """bool (ROWS, COLS): the pixels an object of ``shape`` at ``pos``, ``quat`` covers, seen from above."""
-    centres = jnp.asarray([b.pos for b in shape.boxes], jnp.float32)
-    half = jnp.asarray([b.size for b in shape.boxes], jnp.float32) / 2
+def shape_boxes(shape: Shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A shape's boxes: centres (B, 3), half extents (B, 3) and headings (B,), in its frame."""
+    return (np.asarray([b.pos for b in shape.boxes], np.float32),
+            np.asarray([b.size for b in shape.boxes], np.float32) / 2,
+            np.asarray([b.yaw for b in shape.boxes], np.float32))
+
+
+def footprint(boxes: tuple, pos: jax.Array, quat: jax.Array) -> jax.Array:
+    """bool (ROWS, COLS): the pixels an object of ``boxes`` (:func:`shape_boxes`, or the episode's) at ``pos``,
+    ``quat`` covers, seen from above."""
+    centres, half, yaw = (jnp.asarray(x, jnp.float32) for x in boxes)
     box_pos = pos + poses.rotate(quat, centres)
-    mat = jnp.stack([poses.rotate(quat, e) for e in jnp.eye(3)], axis=-1)
-    mats = jnp.broadcast_to(mat, (len(shape.boxes), 3, 3))
+    box_quat = poses.quat_mul(jnp.broadcast_to(quat, yaw.shape + (4,)), poses.yaw_quat(yaw))
+    mats = jax.vmap(lambda q: jnp.stack([poses.rotate(q, e) for e in jnp.eye(3)], axis=-1))(box_quat)
     xy = jnp.asarray(heightmap.pixel_centres().reshape(-1, 2))
     return geometry.inside_boxes(xy, box_pos, mats, half).reshape(heightmap.ROWS, heightmap.COLS)
 
 
-def random_pose(key: jax.Array, taken: jax.Array, shape: Shape) -> tuple[jax.Array, jax.Array, jax.Array]:
-    """A pose for ``shape`` in the free space left by ``taken`` (ROWS, COLS): ``(pos (3,), quat (4,), found)``,
-    ``found`` false where no pixel is free (the pose is then meaningless)."""
+def random_pose(key: jax.Array, taken: jax.Array, extent) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """A pose for an object of ``extent`` (x, y, z) metres (may be traced) in the free space left by ``taken``
+    (ROWS, COLS): ``(pos (3,), quat (4,), found)``, ``found`` false where no pixel is free (the pose is then
+    meaningless)."""
+    extent = jnp.asarray(extent, jnp.float32)
     key_pixel, key_yaw = jax.random.split(key)
-    free = free_pixels(taken, window_pixels(shape)).reshape(-1)
+    free = free_pixels(taken, window_pixels(extent)).reshape(-1)
     index = jax.random.categorical(key_pixel, jnp.where(free, 0.0, -jnp.inf))
     rc = jnp.stack([index // heightmap.COLS, index % heightmap.COLS]).astype(jnp.float32)
     xy = heightmap.pixel_to_world(rc)
     yaw = jax.random.uniform(key_yaw, (), jnp.float32, 0.0, 2 * np.pi)
-    pos = jnp.concatenate([xy, jnp.full((1,), shape.extent[2] / 2, jnp.float32)])
+    pos = jnp.concatenate([xy, extent[2:3] / 2])
     return pos, poses.yaw_quat(yaw), jnp.any(free)
 
 
-def place_in_turn(key: jax.Array, shapes: tuple[Shape, ...], taken: jax.Array | None = None
-                  ) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
-    """Poses for ``shapes``, placed in order, each in the free space the ones before it left.
+def place_in_turn(key: jax.Array, shapes: tuple[Shape, ...], taken: jax.Array | None = None,
+                  present: jax.Array | None = None) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
+    """Poses for ``shapes``, placed in order, each in the free space the ones before it left (one loop over the
+    shapes, their boxes padded to the same count with boxes that cover nothing).
 
-    Returns ``(pos (K, 3), quat (K, 4), found (K,), taken)``, ``taken`` the pixels covered at the end.
+    ``present`` (bool (K,), default all): the shapes placed this episode; the others take no space and are not
+    found. Returns ``(pos (K, 3), quat (K, 4), found (K,), taken)``, ``taken`` the pixels covered at the end.
     """
     taken = border() if taken is None else taken
-    out = []
-    for i, shape in enumerate(shapes):
-        pos, quat, found = random_pose(jax.random.fold_in(key, i), taken, shape)
-        taken = taken | (footprint(shape, pos, quat) & found)
-        out.append((pos, quat, found))
-    pos, quat, found = (jnp.stack(x) for x in zip(*out, strict=True))
+    present = jnp.ones(len(shapes), bool) if present is None else jnp.asarray(present, bool)
+    count = max(len(shape.boxes) for shape in shapes)
+
+    def padded(shape):
+        centres, half, yaw = shape_boxes(shape)
+        missing = count - len(shape.boxes)
+        return (np.concatenate([centres, np.zeros((missing, 3), np.float32)]),
+                np.concatenate([half, -np.ones((missing, 3), np.float32)]),  # a negative size holds no point
+                np.concatenate([yaw, np.zeros(missing, np.float32)]))
+
+    boxes = tuple(jnp.asarray(np.stack(parts)) for parts in zip(*(padded(s) for s in shapes), strict=True))
+    extents = jnp.asarray([shape.extent for shape in shapes], jnp.float32)
+
+    def place(taken, shape):
+        index, extent, centres, half, yaw, here = shape
+        pos, quat, found = random_pose(jax.random.fold_in(key, index), taken, extent)
+        found = found & here
+        return taken | (footprint((centres, half, yaw), pos, quat) & found), (pos, quat, found)
+
+    taken, (pos, quat, found) = jax.lax.scan(place, taken, (jnp.arange(len(shapes)), extents, *boxes, present))
     return pos, quat, found, taken

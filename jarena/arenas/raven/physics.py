@@ -47,6 +47,8 @@ CONTROL_FIELDS = ("x", "y", "yaw", "rise", "suction", "seek")
 until contact where > 0)."""
 TOUCH = 1e-3
 """The cup's tip touches a surface within this distance, metres."""
+STILL = 5e-3
+"""Objects are at rest when every movable one moves slower than this, metres per second (Ravens' ``is_static``)."""
 
 
 @struct.dataclass
@@ -59,6 +61,9 @@ class RavenPhysics:
       grasp: float32 (7,): the held object's pose in the cup's frame, position and quaternion ``(w, x, y, z)``.
       slip: float32 (): over the current (or last) grasp, the largest distance, metres, between the held object's
         origin and where the grasp puts it, after the physics steps of a control step: how well the weld holds.
+      geom_size, geom_pos, geom_rgb: float32 (G, 3): the drawable boxes' half extents, centres in their body's
+        frame (metres) and colours in [0, 1] (``scene.geom`` order): the scene's, or the episode's where a task
+        changes them (a box of random size); sizes and positions go into the model at every step.
       scene: the scene (static).
     """
 
@@ -66,6 +71,9 @@ class RavenPhysics:
     held: jax.Array
     grasp: jax.Array
     slip: jax.Array
+    geom_size: jax.Array
+    geom_pos: jax.Array
+    geom_rgb: jax.Array
     scene: Scene = struct.field(pytree_node=False)
 
 
@@ -114,9 +122,21 @@ def control_spec() -> Box:
                np.array([BOUNDS[0][1], BOUNDS[1][1], np.pi, 1.0, 1.0, 1.0], np.float32))
 
 
-def _boxes(scene: Scene, data: mjx.Data) -> tuple[jax.Array, jax.Array, jax.Array]:
-    geoms = jnp.asarray(scene.geom)
-    return data.geom_xpos[geoms], data.geom_xmat[geoms].reshape(-1, 3, 3), jnp.asarray(scene.geom_size)
+def boxes(physics: RavenPhysics) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """The drawable boxes where they are: ``(pos (G, 3), mat (G, 3, 3), half extents (G, 3))``."""
+    geoms = jnp.asarray(physics.scene.geom)
+    data = physics.data
+    return data.geom_xpos[geoms], data.geom_xmat[geoms].reshape(-1, 3, 3), physics.geom_size
+
+
+def at_rest(physics: RavenPhysics) -> jax.Array:
+    """bool (): whether the cup holds nothing and every movable object moves slower than :data:`STILL`."""
+    scene = physics.scene
+    if scene.movable.size == 0:
+        return physics.held < 0
+    dof = jnp.asarray(scene.qvel_address)[:, None] + jnp.arange(3)
+    speed = jnp.linalg.norm(physics.data.qvel[dof], axis=-1)
+    return (physics.held < 0) & jnp.all(speed < STILL)
 
 
 def _lowered(scene: Scene, physics: RavenPhysics, boxes, cup_xy: jax.Array, cup_quat: jax.Array,
@@ -134,7 +154,8 @@ def _lowered(scene: Scene, physics: RavenPhysics, boxes, cup_xy: jax.Array, cup_
     held_pos = carried_pos + poses.rotate(carried_quat, local_pos)
     held_mat = jax.vmap(lambda m: _matrix(carried_quat) @ m)(local_rot)
     mine = body == held_object
-    return geometry.landing_height((held_pos, held_mat, size), boxes, ~mine, mine)
+    solid = jnp.asarray(scene.geom_solid)
+    return geometry.landing_height((held_pos, held_mat, size), boxes, ~mine & solid, mine & solid)
 
 
 def _matrix(q: jax.Array) -> jax.Array:
@@ -152,11 +173,11 @@ def move_cup(physics: RavenPhysics, control: jax.Array) -> RavenPhysics:
     holding = physics.held >= 0
     movable = jnp.asarray(scene.movable)
     held_object = jnp.where(holding, movable[jnp.maximum(physics.held, 0)], -1)
-    boxes = _boxes(scene, data)
+    every_box = boxes(physics)
     others = jnp.asarray(scene.geom_object) != held_object
-    surface, box = geometry.cast_down(xy[None], *boxes, others)
+    surface, box = geometry.cast_down(xy[None], *every_box, others)
     surface, box = surface[0], box[0]
-    landing = _lowered(scene, physics, boxes, xy, quat, held_object)
+    landing = _lowered(scene, physics, every_box, xy, quat, held_object)
     old_pos, _ = cup_pose(physics)
     z = jnp.where(seek, jnp.where(holding, landing, surface), old_pos[2] + rise)
     pos = jnp.concatenate([xy, z[None]])
@@ -204,6 +225,17 @@ def _with_grasp(model: mjx.Model, grasp: jax.Array) -> mjx.Model:
     return model.replace(eq_data=data)
 
 
+def _with_shapes(model: mjx.Model, physics: RavenPhysics) -> mjx.Model:
+    """``model`` with the episode's box sizes and positions (only where the scene has resizable shapes); masses
+    and inertias stay the model's."""
+    scene = physics.scene
+    if not scene.resizable:
+        return model
+    geoms = jnp.asarray(scene.geom)
+    return model.replace(geom_size=model.geom_size.at[geoms].set(physics.geom_size),
+                         geom_pos=model.geom_pos.at[geoms].set(physics.geom_pos))
+
+
 def raven_dynamics(scene: Scene, substeps: int = 4, render: Callable | None = None) -> Dynamics:
     """The :class:`Dynamics` of ``scene``: a control step is :func:`move_cup`, then ``substeps`` MJX steps.
 
@@ -224,14 +256,16 @@ def raven_dynamics(scene: Scene, substeps: int = 4, render: Callable | None = No
         data = mjx.make_data(device_model)
         return RavenPhysics(data=data, held=jnp.asarray(-1, jnp.int32),
                             grasp=jnp.asarray([0, 0, 0, 1, 0, 0, 0], jnp.float32), slip=jnp.zeros((), jnp.float32),
-                            scene=scene)
+                            geom_size=jnp.asarray(scene.geom_size), geom_pos=jnp.asarray(scene.geom_pos),
+                            geom_rgb=jnp.asarray(scene.geom_rgb), scene=scene)
 
     def after_reset(physics, params):
-        return physics.replace(data=mjx.kinematics(apply_params(device_model, params), physics.data))
+        model = _with_shapes(apply_params(device_model, params), physics)
+        return physics.replace(data=mjx.kinematics(model, physics.data))
 
     def step(physics, control, params):
         physics = move_cup(physics, control)
-        model = _with_grasp(apply_params(device_model, params), physics.grasp)
+        model = _with_grasp(_with_shapes(apply_params(device_model, params), physics), physics.grasp)
         data = jax.lax.fori_loop(0, substeps, lambda _, d: mjx.step(model, d), physics.data)
         physics = physics.replace(data=mjx.kinematics(model, data))
         return physics.replace(slip=jnp.maximum(physics.slip, grasp_error(physics)))

@@ -6,9 +6,11 @@ each episode places them through ``mjx.Data.mocap_pos`` without changing the mod
 body without collisions, and every movable object has a weld equality to it, inactive until the cup grasps
 the object (:mod:`.physics`).
 
-Contacts are kept few: movable objects collide with the table, the fixed objects and each other (``contype`` 1,
-``conaffinity`` 1); the table and fixed objects (``contype`` 0) never collide among themselves; the cup collides
-with nothing (its touch is found by a ray, :mod:`.geometry`).
+Contacts are kept few: by default movable objects collide with the table, the fixed objects and each other
+(``contype`` 1, ``conaffinity`` 1); the table and fixed objects (``contype`` 0) never collide among themselves; the
+cup collides with nothing (its touch is found by a ray, :mod:`.geometry`). An :class:`Item` may narrow its
+collisions further (its ``contype`` and ``conaffinity`` bits), and a :class:`Box` that is not ``solid`` is only
+seen (by the heightmap and the cup's ray), never touched: a part's look and its collision can be separate boxes.
 """
 
 from __future__ import annotations
@@ -42,10 +44,21 @@ def rgb(name: str) -> tuple[float, float, float]:
 
 @dataclasses.dataclass(frozen=True)
 class Box:
-    """A box part of a shape: ``size`` its full extents (x, y, z) and ``pos`` its centre in the body frame, metres."""
+    """A box part of a shape.
+
+    Attributes:
+      size: full extents (x, y, z), metres.
+      pos: its centre in the body frame, metres.
+      yaw: its heading in the body frame, radians.
+      solid: whether it collides (``False``: seen, never touched).
+      rgb: its colour in [0, 1] (``None``: the object's).
+    """
 
     size: tuple[float, float, float]
     pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    yaw: float = 0.0
+    solid: bool = True
+    rgb: tuple[float, float, float] | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,6 +74,8 @@ class Shape:
       friction: sliding friction coefficient (Ravens' ``lateral_friction``).
       fixed: whether the object is part of the scenery (Ravens' ``fixed`` objects): it never moves.
       rgb: default colour in [0, 1].
+      resizable: whether a task sets its boxes' sizes and positions per episode (``boxes`` then give the largest;
+        :attr:`.physics.RavenPhysics.geom_size`).
     """
 
     name: str
@@ -70,6 +85,7 @@ class Shape:
     friction: float = 1.0
     fixed: bool = False
     rgb: tuple[float, float, float] = rgb("red")
+    resizable: bool = False
 
 
 ELL = Shape("ell", (Box((0.08, 0.03, 0.04), (0.025, 0.0, 0.0)), Box((0.03, 0.08, 0.0399), (0.0, 0.025, 0.0))),
@@ -88,13 +104,90 @@ BLOCK = Shape("block", (Box((0.04, 0.04, 0.04)),), extent=(0.04, 0.04, 0.04), ma
 """Ravens' ``stacking/block.urdf``: a 4 cm cube."""
 
 
+def octagon(inradius: float, height: float, z: float, solid: tuple[bool, bool] = (False, False),
+            rgb: tuple[float, float, float] | None = None) -> tuple[Box, ...]:
+    """A regular octagon prism of ``inradius`` (metres, centre to side), ``height`` (metres), centred ``z`` above the
+    origin, as the union of four boxes (arms at 0, 45, 90 and 135 degrees); ``solid``: whether the arms at 0 and
+    90 degrees collide (the others never do)."""
+    length, width = 2 * inradius, 2 * inradius * np.tan(np.pi / 8)
+    return tuple(Box((length, width, height), (0.0, 0.0, z), yaw=k * np.pi / 4,
+                     solid=solid[k // 2] if k % 2 == 0 else False, rgb=rgb) for k in range(4))
+
+
+def _octagon_wall(inradius: float, thickness: float, height: float) -> tuple[Box, ...]:
+    """Eight upright walls (seen, never touched) around an octagon of outer ``inradius``, standing on the origin."""
+    length = 2 * inradius * np.tan(np.pi / 8)
+    middle = inradius - thickness / 2
+    return tuple(Box((thickness, length, height), (middle * np.cos(a), middle * np.sin(a), height / 2), yaw=a,
+                     solid=False) for a in np.arange(8) * np.pi / 4)
+
+
+_BOWL_LOOK = _octagon_wall(0.058, 0.006, 0.035) + octagon(0.052, 0.005, 0.0025)
+BOWL = Shape("bowl", (Box((0.07, 0.07, 0.005), (0.0, 0.0, 0.0025)),) + _BOWL_LOOK, extent=(0.12, 0.12, 0.0),
+             mass=0.1, friction=1.0, rgb=rgb("green"))
+"""Ravens' ``bowl/bowl.urdf`` (a 11.6 x 11.8 x 3.5 cm cup mesh, centred here on its origin): an octagonal bowl 11.6
+cm across and 3.5 cm high, its origin on the table. Its walls and floor are only seen; a 7 cm square under the
+floor, 5 mm thick, is what touches (the table, and blocks put in the bowl)."""
+BOWL_FIXED = dataclasses.replace(BOWL, boxes=_BOWL_LOOK, fixed=True)
+""":data:`BOWL` as scenery (place-red-in-green's target bowls): seen, never touched; blocks put in it rest on the
+table, inside its 5 mm floor."""
+
+_LIGHT, _MIDDLE, _DARK = (0.9176, 0.6882, 0.5588), (0.6118, 0.4588, 0.3725), (0.3059, 0.2294, 0.1863)
+PYRAMID_BASE = Shape("stand", (Box((0.05, 0.15, 0.005), rgb=_MIDDLE),) + tuple(
+    Box((0.05, 0.05, 0.005), (0.0, y, 0.0), solid=False, rgb=c)
+    for y, c in ((0.0, _MIDDLE), (-0.05, _LIGHT), (0.05, _DARK))),
+    extent=(0.05, 0.15, 0.005), fixed=True, friction=1.0, rgb=_MIDDLE)
+"""Ravens' ``stacking/stand.urdf``: three 5 x 5 x 0.5 cm squares in a row, in three browns (one slab touches)."""
+
+HANOI_STAND = Shape("stand", (Box((0.12, 0.36, 0.01), rgb=_MIDDLE),) + tuple(
+    Box((0.12, 0.12, 0.01), (0.0, y, 0.0), solid=False, rgb=c)
+    for y, c in ((0.0, _MIDDLE), (-0.12, _LIGHT), (0.12, _DARK))) + tuple(
+    Box((0.01, 0.01, 0.05), (0.0, y, 0.03), solid=False, rgb=_MIDDLE) for y in (-0.12, 0.0, 0.12)),
+    extent=(0.12, 0.36, 0.01), fixed=True, friction=0.5, rgb=_MIDDLE)
+"""Ravens' ``hanoi/stand.urdf``: three 12 x 12 x 1 cm slabs in a row, each with a rod 5 cm high (1 cm square here,
+1 cm across in Ravens) at its centre. The rods are only seen: a disk goes down over one without touching it."""
+
+
+def disk(index: int) -> Shape:
+    """Ravens' ``hanoi/disk{index}.urdf``: a ring 1 cm thick, 6, 7 or 8 cm across (a 3 cm hole), here a solid
+    octagon (the rod shows through it from above); red, yellow, green."""
+    radius = (0.03, 0.035, 0.04)[index]
+    colour = ((1.0, 0.3412, 0.349), (0.9294, 0.7882, 0.2824), (0.349, 0.6627, 0.3098))[index]
+    return Shape(f"disk{index}", octagon(radius, 0.01, 0.0, solid=(True, True)),
+                 extent=(2 * radius, 2 * radius, 0.01), mass=0.1, friction=1.0, rgb=colour)
+
+
+CORNER = Shape("corner", (Box((0.055, 0.005, 0.001), (0.0525, 0.0775, 0.0), solid=False),
+                          Box((0.005, 0.055, 0.001), (0.0775, 0.0525, 0.0), solid=False)),
+               extent=(0.15, 0.15, 0.0), fixed=True, friction=0.3, rgb=(0.0, 1.0, 0.0), resizable=True)
+"""Ravens' ``corner/corner-template.urdf``: two green marks 5.5 cm long, 5 mm wide and 1 mm high, in an L around
+a box's +x +y corner (their positions follow the episode's box). Only seen, as in Ravens."""
+
+BOX = Shape("box", (Box((0.15, 0.15, 0.06)),), extent=(0.15, 0.15, 0.06), mass=0.1, friction=1.0,
+            rgb=rgb("brown"), resizable=True)
+"""Ravens' ``box/box-template.urdf``: a box of the episode's size (at most 15 x 15 x 6 cm), 0.1 kg."""
+
+
+
 @dataclasses.dataclass(frozen=True)
 class Item:
-    """One object of a scene: its ``name`` (unique), ``shape`` and colour (``None``: the shape's)."""
+    """One object of a scene: its ``name`` (unique), ``shape`` and colour (``None``: the shape's), and the
+    collision bits of its solid boxes (MuJoCo's ``contype`` and ``conaffinity``; ``None``: 1 and 1 for movable
+    objects, 0 and 1 for fixed ones). Two boxes touch when either's ``contype`` shares a bit with the other's
+    ``conaffinity``; the table has ``contype`` 0 and ``conaffinity`` 1."""
 
     name: str
     shape: Shape
     rgb: tuple[float, float, float] | None = None
+    contype: int | None = None
+    conaffinity: int | None = None
+
+    @property
+    def collision(self) -> tuple[int, int]:
+        """``(contype, conaffinity)`` of the item's solid boxes."""
+        default = (0, 1) if self.shape.fixed else (1, 1)
+        return (default[0] if self.contype is None else self.contype,
+                default[1] if self.conaffinity is None else self.conaffinity)
 
     @property
     def colour(self) -> tuple[float, float, float]:
@@ -115,12 +208,16 @@ class PhysicsOptions:
     ls_iterations: int = 10
 
 
-def _box_geom(box: Box, colour, contype: int, mass: float | None, friction: float) -> str:
+def _box_geom(box: Box, colour, collision: tuple[int, int], mass: float | None, friction: float) -> str:
     half = " ".join(f"{s / 2:.6g}" for s in box.size)
     pos = " ".join(f"{p:.6g}" for p in box.pos)
+    quat = f"{np.cos(box.yaw / 2):.9g} 0 0 {np.sin(box.yaw / 2):.9g}"
+    colour = colour if box.rgb is None else box.rgb
+    contype, conaffinity = collision if box.solid else (0, 0)
     mass_attr = f' mass="{mass:.6g}"' if mass is not None else ""
-    return (f'<geom type="box" size="{half}" pos="{pos}" rgba="{colour[0]:.4g} {colour[1]:.4g} {colour[2]:.4g} 1" '
-            f'contype="{contype}" conaffinity="1" friction="{friction:.4g} 0.005 0.0001"{mass_attr}/>')
+    return (f'<geom type="box" size="{half}" pos="{pos}" quat="{quat}" '
+            f'rgba="{colour[0]:.4g} {colour[1]:.4g} {colour[2]:.4g} 1" contype="{contype}" '
+            f'conaffinity="{conaffinity}" friction="{friction:.4g} 0.005 0.0001"{mass_attr}/>')
 
 
 def mjcf(items: tuple[Item, ...], options: PhysicsOptions) -> str:
@@ -131,11 +228,11 @@ def mjcf(items: tuple[Item, ...], options: PhysicsOptions) -> str:
         # park every object apart, off the table's workspace, until an episode places it
         parked = f"{2.0 + 0.3 * i:.3f} 2.0 {shape.extent[2] / 2:.4f}"
         if shape.fixed:
-            geoms = "".join(_box_geom(b, item.colour, 0, None, shape.friction) for b in shape.boxes)
+            geoms = "".join(_box_geom(b, item.colour, item.collision, None, shape.friction) for b in shape.boxes)
             bodies.append(f'<body name="{item.name}" mocap="true" pos="{parked}">{geoms}</body>')
         else:
             volume = [float(np.prod(b.size)) for b in shape.boxes]
-            geoms = "".join(_box_geom(b, item.colour, 1, shape.mass * v / sum(volume), shape.friction)
+            geoms = "".join(_box_geom(b, item.colour, item.collision, shape.mass * v / sum(volume), shape.friction)
                             for b, v in zip(shape.boxes, volume, strict=True))
             bodies.append(f'<body name="{item.name}" pos="{parked}"><freejoint name="{item.name}"/>{geoms}</body>')
             welds.append(f'<weld name="grasp_{item.name}" body1="cup" body2="{item.name}" active="false"/>')
@@ -172,8 +269,11 @@ class Scene:
       mocap: int (N,): each object's mocap index, -1 for movable objects.
       cup: the cup's mocap index.
       geom: int (G,): the drawable box geoms' ids; ``geom_object`` int (G,) their object; ``geom_size`` float32
-        (G, 3) half extents; ``geom_rgb`` float32 (G, 3) colours in [0, 1].
+        (G, 3) half extents; ``geom_pos`` float32 (G, 3) centres in their body's frame; ``geom_rgb`` float32
+        (G, 3) colours in [0, 1]; ``geom_solid`` bool (G,) whether each collides. Sizes, positions and colours
+        are the model's; a task may change them per episode (:class:`.physics.RavenPhysics`).
       movable_slot: int (N,): each object's index in ``movable``, -1 for fixed objects.
+      resizable: whether a task changes boxes' sizes or positions per episode (any :attr:`Shape.resizable`).
     """
 
     items: tuple[Item, ...]
@@ -186,8 +286,11 @@ class Scene:
     geom: np.ndarray
     geom_object: np.ndarray
     geom_size: np.ndarray
+    geom_pos: np.ndarray
     geom_rgb: np.ndarray
+    geom_solid: np.ndarray
     movable_slot: np.ndarray
+    resizable: bool = False
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -227,5 +330,7 @@ def build_scene(items: tuple[Item, ...], options: PhysicsOptions = PhysicsOption
         geom=np.array(geoms, np.int32),
         geom_object=np.array([object_of_body[model.geom_bodyid[g]] for g in geoms], np.int32),
         geom_size=np.asarray(model.geom_size[geoms], np.float32).reshape(-1, 3),
+        geom_pos=np.asarray(model.geom_pos[geoms], np.float32).reshape(-1, 3),
         geom_rgb=np.asarray(model.geom_rgba[geoms, :3], np.float32).reshape(-1, 3),
-        movable_slot=slot)
+        geom_solid=np.asarray((model.geom_contype[geoms] | model.geom_conaffinity[geoms]) > 0).reshape(-1),
+        movable_slot=slot, resizable=any(item.shape.resizable for item in items))

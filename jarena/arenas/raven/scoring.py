@@ -1,14 +1,19 @@
-"""Ravens' pose scoring: objects matched to target poses, with partial credit that sums to 1 per episode.
+"""Ravens' pose scoring: objects matched to target poses, in stages, with partial credit that sums to 1 per episode.
 
 An object matches a target when its planar distance to it is under ``pos_eps`` (1 cm by default) and its heading
 differs from the target's, modulo the object's rotational symmetry, by less than ``rot_eps`` (15 degrees); a
-symmetry of 0 ignores the heading (Ravens' ``is_match``). Each step the score is the fraction of objects that
-match one of the targets they may go to (each object counts once; as in Ravens, two objects on one target both
-count). The reward is the score's change since the last step, so an episode's rewards add up to its final
-score; once every object matches (the score within 0.01 of 1) the goal is complete and the episode terminates.
-Success: the rewards so far add up to more than 0.99. The task runs after every control step of the cup; the
-pick-and-place tool adds up the rewards of an action's steps and reports the rest as after its last one, where
-Ravens scores (after the objects settle).
+symmetry of 0 ignores the heading (Ravens' ``is_match``). A goal is a list of entries (an object and the targets it
+may go to) in stages of given weights that add up to 1 (Ravens' list of goals: one stage for most tasks, the three
+rows of a pyramid, the seven moves of the towers of Hanoi, where one object comes back in several stages). Only
+the current stage is scored: its credit is its weight times the fraction of its entries that match one of their
+targets (each entry counts once; as in Ravens, two objects on one target both count). A stage is complete, its
+weight banked for good and the next one scored, when its credit is within 0.01 of its weight with the objects at
+rest (:func:`.physics.at_rest`: Ravens scores once the simulation is still). The score is the banked weights
+plus the current stage's credit, and the reward is its change since the last step, so an episode's rewards add
+up to its final score; the episode terminates when every stage is complete or the score passes 0.99. Success:
+the score passes 0.99. The task runs after every control step of the cup; the pick-and-place tool adds up the
+rewards of an action's steps and reports the rest as after its last one, where Ravens scores (after the objects
+settle).
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ import numpy as np
 from flax import struct
 
 from jarena.arenas.raven import poses
-from jarena.arenas.raven.physics import RavenPhysics, object_poses
+from jarena.arenas.raven.physics import RavenPhysics, at_rest, object_poses
 from jarena.core.task import Task
 from jarena.core.tree import as_float32
 
@@ -31,12 +36,14 @@ class Goal:
     """Where objects must go.
 
     Attributes:
-      objects: int32 (O,): the objects to place (their index in the scene).
-      present: bool (O,): those that take part in this episode.
-      symmetry: float32 (O,): each object's rotational symmetry, radians (2 pi: none; 0: any heading).
+      objects: int32 (O,): each entry's object (its index in the scene; an object may come in several entries).
+      present: bool (O,): the entries that take part in this episode.
+      symmetry: float32 (O,): each entry's object's rotational symmetry, radians (2 pi: none; 0: any heading).
       targets: float32 (T, 4): target poses ``(x, y, z, yaw)``.
       target_present: bool (T,): the targets of this episode.
-      matches: bool (O, T): which targets each object may go to.
+      matches: bool (O, T): which targets each entry may go to.
+      stage: int32 (O,): each entry's stage (``None``: one stage).
+      weights: float32 (S,): each stage's share of the score, adding up to 1 (``None``: one stage, ``[1]``).
     """
 
     objects: jax.Array
@@ -45,17 +52,22 @@ class Goal:
     targets: jax.Array
     target_present: jax.Array
     matches: jax.Array
+    stage: jax.Array | None = None
+    weights: jax.Array | None = None
 
 
 @struct.dataclass
 class PoseGoalState:
-    """The scoring task's state: the episode's :class:`Goal`, the reward handed out so far (the last score), and
-    the tolerances it is scored with (``pos_eps`` metres, ``rot_eps`` radians, from the params at reset)."""
+    """The scoring task's state: the episode's :class:`Goal`, the reward handed out so far (the last score), the
+    tolerances it is scored with (``pos_eps`` metres, ``rot_eps`` radians, from the params at reset), the current
+    ``stage`` (int32 (), the number of stages complete) and the weights banked by them (``progress``)."""
 
     goal: Goal
     credited: jax.Array
     pos_eps: jax.Array
     rot_eps: jax.Array
+    stage: jax.Array = 0
+    progress: jax.Array = 0.0
 
 
 @struct.dataclass
@@ -89,10 +101,36 @@ def matched(planar: jax.Array, goal: Goal, params: PoseGoalParams) -> jax.Array:
     return allowed & (distance < params.pos_eps) & (heading < params.rot_eps)
 
 
-def score(planar: jax.Array, goal: Goal, params: PoseGoalParams) -> jax.Array:
-    """float32 (): the fraction of the present objects that match an allowed target."""
-    placed = jnp.any(matched(planar, goal, params), axis=-1)
-    return jnp.sum(placed) / jnp.maximum(jnp.sum(goal.present), 1)
+def stages(goal: Goal) -> tuple[jax.Array, jax.Array]:
+    """``(stage (O,), weights (S,))`` of a goal's entries (one stage of weight 1 where the goal names none)."""
+    count = goal.objects.shape[0]
+    stage = jnp.zeros(count, jnp.int32) if goal.stage is None else jnp.asarray(goal.stage, jnp.int32)
+    weights = jnp.ones(1, jnp.float32) if goal.weights is None else jnp.asarray(goal.weights, jnp.float32)
+    return stage, weights
+
+
+def current_goal(goal: Goal, stage: jax.Array) -> Goal:
+    """``goal`` with only the entries of ``stage`` present (none once every stage is complete)."""
+    entry_stage, _ = stages(goal)
+    return goal.replace(present=goal.present & (entry_stage == stage))
+
+
+def stage_credit(planar: jax.Array, goal: Goal, stage: jax.Array, params: PoseGoalParams) -> jax.Array:
+    """float32 (): the credit of ``stage``: its weight times the fraction of its present entries that match an
+    allowed target (0 past the last stage)."""
+    _, weights = stages(goal)
+    mine = current_goal(goal, stage)
+    placed = jnp.any(matched(planar, mine, params), axis=-1)
+    fraction = jnp.sum(placed) / jnp.maximum(jnp.sum(mine.present), 1)
+    return jnp.where(stage < weights.shape[0], weights[jnp.minimum(stage, weights.shape[0] - 1)] * fraction, 0.0)
+
+
+def score(planar: jax.Array, goal: Goal, params: PoseGoalParams, stage: jax.Array = 0,
+          progress: jax.Array = 0.0) -> jax.Array:
+    """float32 (): the score with ``stage`` current and ``progress`` banked: ``progress`` plus the stage's credit
+    (for a goal of one stage, from its start: the fraction of the present objects that match an allowed
+    target)."""
+    return progress + stage_credit(planar, goal, jnp.asarray(stage, jnp.int32), params)
 
 
 def errors(planar: jax.Array, goal: Goal) -> dict[str, jax.Array]:
@@ -122,28 +160,40 @@ def pose_goal(goal_of: Callable[[RavenPhysics], Goal], name: str, pos_eps: float
 
     Reward terms: ``placed`` (the score). Metrics: ``placed``, ``total_reward`` (rewards so far), :func:`errors`,
     and ``grasp_slip``, metres (``RavenPhysics.slip``: how far the last held object strayed from the cup's grasp).
-    ``info.goal`` holds the targets, float32 (T x 4,).
+    ``info.goal`` holds the targets, float32 (T x 4,). Metrics: ``placed`` (the score), ``stages`` (the number of
+    stages complete), the errors of the current stage's entries (the last stage's once all are complete).
     """
 
     def measure(physics, state, params):
         planar = planar_poses(physics)
-        now = score(planar, state.goal, params)
-        return now, {"placed": now, **errors(planar, state.goal), "grasp_slip": physics.slip}
+        credit = stage_credit(planar, state.goal, state.stage, params)
+        _, weights = stages(state.goal)
+        scored = current_goal(state.goal, jnp.minimum(state.stage, weights.shape[0] - 1))
+        return credit, planar, {**errors(planar, scored), "grasp_slip": physics.slip}
 
     def reset(key, physics, outcome, params):
         goal = goal_of(physics)
         state = PoseGoalState(goal=goal, credited=jnp.zeros((), jnp.float32), pos_eps=params.pos_eps,
-                              rot_eps=params.rot_eps)
-        now, metrics = measure(physics, state, params)
+                              rot_eps=params.rot_eps, stage=jnp.zeros((), jnp.int32),
+                              progress=jnp.zeros((), jnp.float32))
+        now, _, metrics = measure(physics, state, params)
+        metrics = dict(metrics, placed=now, stages=jnp.zeros((), jnp.float32))
         return outcome.replace(goal=goal.targets.reshape(-1), reward_terms=dict(outcome.reward_terms, placed=now),
                                metrics=dict(outcome.metrics, **metrics, total_reward=state.credited)), state
 
     def update(state, outcome, transition, params):
-        now, metrics = measure(transition.physics, state, params)
-        credited = state.credited
-        complete = jnp.abs(1.0 - now) < 0.01
-        state = state.replace(credited=now)
-        return outcome.replace(reward=outcome.reward + (now - credited), terminated=outcome.terminated | complete,
+        credit, _, metrics = measure(transition.physics, state, params)
+        _, weights = stages(state.goal)
+        now = state.progress + credit
+        weight = weights[jnp.minimum(state.stage, weights.shape[0] - 1)]
+        complete = (state.stage < weights.shape[0]) & (jnp.abs(weight - credit) < 0.01) & at_rest(
+            transition.physics)
+        stage = state.stage + complete.astype(jnp.int32)
+        done = (stage >= weights.shape[0]) | (now > 0.99)
+        previous = state.credited
+        state = state.replace(credited=now, stage=stage, progress=state.progress + jnp.where(complete, weight, 0.0))
+        metrics = dict(metrics, placed=now, stages=stage.astype(jnp.float32))
+        return outcome.replace(reward=outcome.reward + (now - previous), terminated=outcome.terminated | done,
                                success=now > 0.99, goal=state.goal.targets.reshape(-1),
                                reward_terms=dict(outcome.reward_terms, placed=now),
                                metrics=dict(outcome.metrics, **metrics, total_reward=now)), state

@@ -17,11 +17,10 @@ import jarena_agents
 from jarena.arenas.raven import heightmap, physics, poses, scoring
 from jarena.building.grammar import ArenaStringError
 from jarena.core import faults
+from tests.arenas.raven import FAST_COMPILE
 
 ARENA = "raven|task:block-insertion"
 EPISODES = jnp.arange(3)  # eval episodes 0, 1, 2
-FAST_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True,
-                "xla_cpu_use_fusion_emitters": False}
 
 
 @pytest.fixture(scope="module")
