@@ -63,7 +63,6 @@ from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.spec import Box, Discrete, Spec
 from jarena.core.types import Info
-from jarena.data.collect import configs_for
 from jarena.data.dataset import TrajectoryDataset
 from jarena.data.loader import draw_indices
 from jarena.data.schema import DatasetError
@@ -78,6 +77,7 @@ from jarena_agents.config import (
     non_negative,
     positive,
 )
+from jarena_agents.datasets import check_dataset
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
 
@@ -296,25 +296,6 @@ def flatten(observation: dict, goal: dict, images: tuple[str, ...] = ()):
 
 
 # ---------------------------------------------------------------------------------------------- the dataset
-def _shapes(fields) -> dict[str, tuple]:
-    return {name: (tuple(f.shape), f.dtype) for name, f in fields.items()}
-
-
-def check_dataset(dataset: TrajectoryDataset, arena: Arena) -> None:
-    """Raises a ``DatasetError`` unless ``dataset`` holds ``arena``'s observations, actions and goals."""
-    expected = configs_for(arena)
-    problems = []
-    for group, config in (("observation", "obs_config"), ("action", "act_config"), ("goal", "goal_config")):
-        have, want = _shapes(getattr(dataset.schema, group)), _shapes(expected[config])
-        if have != want:
-            problems.append(f"{group} fields (shape, dtype) {have}, the arena's {want}")
-    if problems:
-        raise DatasetError(f"bc: the dataset at {dataset.path!r} does not fit arena {arena.name!r}: "
-                           + "; ".join(problems))
-    if dataset.num_trajectories() == 0:
-        raise DatasetError(f"bc: the dataset at {dataset.path!r} has no trajectories")
-
-
 def read_dataset(path: str, arena: Arena, chunk: int) -> dict[str, Any]:
     """The whole dataset at ``path`` as numpy arrays: ``data`` (see :class:`BCTrainState`), ``lengths``,
     and ``mean`` / ``var`` of the flattened observations (float32 (D,))."""
@@ -322,7 +303,7 @@ def read_dataset(path: str, arena: Arena, chunk: int) -> dict[str, Any]:
         raise ValueError("bc needs demonstrations: set its config key dataset=PATH to a TrajectoryDataset "
                          "(collect one with `jarena collect AGENT ARENA --out PATH`)")
     with TrajectoryDataset(path, "r") as dataset:
-        check_dataset(dataset, arena)
+        check_dataset(dataset, arena, "bc")
         lengths = dataset.lengths()
         if lengths.max() < chunk:
             raise DatasetError(f"bc: chunk={chunk} needs trajectories of at least {chunk} steps; the longest in "

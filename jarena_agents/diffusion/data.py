@@ -18,10 +18,10 @@ import numpy as np
 from flax import struct
 
 from jarena.core.arena import Arena
-from jarena.data.collect import configs_for
 from jarena.data.dataset import TrajectoryDataset
 from jarena.data.loader import draw_indices
 from jarena.data.schema import DatasetError
+from jarena_agents.datasets import check_dataset
 
 RANGE_EPSILON = 1e-4  # a dimension whose values span less is constant: it normalises to 0
 
@@ -82,22 +82,6 @@ def flatten(observation: dict, goal: dict, images: tuple[str, ...], lead: tuple[
     return {"vector": vector, "images": {k: observation[k] for k in images}}
 
 
-def check_dataset(dataset: TrajectoryDataset, arena: Arena) -> None:
-    """Raises a ``DatasetError`` unless ``dataset`` holds ``arena``'s observations, actions and goals."""
-    expected = configs_for(arena)
-    problems = []
-    for group, config in (("observation", "obs_config"), ("action", "act_config"), ("goal", "goal_config")):
-        have = {n: (tuple(f.shape), f.dtype) for n, f in getattr(dataset.schema, group).items()}
-        want = {n: (tuple(f.shape), f.dtype) for n, f in expected[config].items()}
-        if have != want:
-            problems.append(f"{group} fields (shape, dtype) {have}, the arena's {want}")
-    if problems:
-        raise DatasetError(f"diffusion: the dataset at {dataset.path!r} does not fit arena {arena.name!r}: "
-                           + "; ".join(problems))
-    if dataset.num_trajectories() == 0:
-        raise DatasetError(f"diffusion: the dataset at {dataset.path!r} has no trajectories")
-
-
 def shortest_useful(horizon: int, obs_horizon: int, action_steps: int) -> int:
     """The fewest steps a trajectory needs to hold one padded window."""
     return max(1, horizon - (obs_horizon - 1) - (action_steps - 1))
@@ -116,7 +100,7 @@ def read_dataset(path: str, arena: Arena, images: tuple[str, ...], horizon: int,
         raise ValueError("diffusion needs demonstrations: set its config key dataset=PATH to a TrajectoryDataset "
                          "(collect one with `jarena collect AGENT ARENA --out PATH`)")
     with TrajectoryDataset(path, "r") as dataset:
-        check_dataset(dataset, arena)
+        check_dataset(dataset, arena, "diffusion")
         lengths = dataset.lengths()
         needed = shortest_useful(horizon, obs_horizon, action_steps)
         if lengths.max() < needed:

@@ -8,25 +8,8 @@ from typing import Any
 import numpy as np
 
 from jarena.core.arena import Arena
-from jarena.data.collect import configs_for
 from jarena.data.dataset import TrajectoryDataset
-from jarena.data.schema import DatasetError
-
-
-def check_dataset(dataset: TrajectoryDataset, arena: Arena) -> None:
-    """Raises a ``DatasetError`` unless ``dataset`` holds ``arena``'s observations and actions and a step."""
-    expected = configs_for(arena)
-    problems = []
-    for group, config in (("observation", "obs_config"), ("action", "act_config")):
-        have = {n: (tuple(f.shape), f.dtype) for n, f in getattr(dataset.schema, group).items()}
-        want = {n: (tuple(f.shape), f.dtype) for n, f in expected[config].items()}
-        if have != want:
-            problems.append(f"{group} fields (shape, dtype) {have}, the arena's {want}")
-    if problems:
-        raise DatasetError(f"transporter: the dataset at {dataset.path!r} does not fit arena {arena.name!r}: "
-                           + "; ".join(problems))
-    if dataset.num_steps() == 0:
-        raise DatasetError(f"transporter: the dataset at {dataset.path!r} has no steps")
+from jarena_agents.datasets import check_dataset
 
 
 def read_dataset(path: str, arena: Arena, keys: tuple[str, str]) -> dict[str, Any]:
@@ -37,7 +20,7 @@ def read_dataset(path: str, arena: Arena, keys: tuple[str, str]) -> dict[str, An
         raise ValueError("transporter needs demonstrations: set its config key dataset=PATH to a TrajectoryDataset "
                          "(collect one with `jarena collect oracle_raven ARENA --out PATH`)")
     with TrajectoryDataset(path, "r") as dataset:
-        check_dataset(dataset, arena)
+        check_dataset(dataset, arena, "transporter", ("observation", "action"), need="steps")
         lengths = dataset.lengths()
         n, steps = dataset.num_trajectories(), dataset.num_steps()
         (action_name,) = dataset.schema.action
