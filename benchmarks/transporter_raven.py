@@ -1,5 +1,6 @@
-"""Transporter Networks on Raven's block-insertion: oracle demonstrations, training, and success over the 100 eval
-episodes, with the wall time of each part. Made for a GPU (the paper's network and 40,000 updates).
+"""Transporter Networks on a Raven task (``--task``, default block-insertion): oracle demonstrations, training,
+and success over the 100 eval episodes, with the wall time of each part. Made for a GPU (the paper's network and
+40,000 updates).
 
     python benchmarks/transporter_raven.py --demos 100 --steps 40000 --run-dir runs/transporter
 
@@ -29,11 +30,10 @@ import jarena_agents
 from jarena.data import TrajectoryDataset, configs_for
 from jarena.training import train_and_evaluate
 
-ARENA = "raven|task:block-insertion"
-
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--task", default="block-insertion", help="the Raven task (raven|task:<name>)")
     parser.add_argument("--demos", type=int, default=100, help="oracle episodes to learn from (paper: 1 to 1000)")
     parser.add_argument("--steps", type=int, default=40_000, help="gradient updates")
     parser.add_argument("--seed", type=int, default=0)
@@ -49,7 +49,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.run_dir or tmp)
         root.mkdir(parents=True, exist_ok=True)
-        arena = jarena.build_arena(ARENA)
+        arena = jarena.build_arena(f"raven|task:{args.task}")
         demos = root / f"oracle_{args.demos}"
         start = time.perf_counter()
         with TrajectoryDataset(demos, "w", **configs_for(arena)) as dataset:

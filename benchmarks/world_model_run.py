@@ -18,7 +18,7 @@ import jax
 
 import jarena
 import jarena_agents
-from jarena.cli import parse_override
+from jarena.cli import parse_override, select_arg
 from jarena.training import train_and_evaluate
 
 
@@ -30,6 +30,8 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=None, help="environment steps (default: the config's)")
     parser.add_argument("--set", action="append", type=parse_override, default=[], metavar="KEY=VALUE")
     parser.add_argument("--validations", type=int, default=10)
+    parser.add_argument("--select", type=select_arg, default="best",
+                        help="the policy the final evaluation runs: best, last or best:<validation column>")
     parser.add_argument("--chunks", type=int, default=None, help="chunks to run in this call (default: all)")
     parser.add_argument("--run-dir", required=True)
     parser.add_argument("--seed", type=int, default=0)
@@ -45,8 +47,8 @@ def main() -> None:
           f"{jax.devices()[0].device_kind}, jax {jax.__version__}, config {args.config!r}, "
           f"overrides {dict(args.set)}", flush=True)
     result = train_and_evaluate(agent, arena, jax.random.key(args.seed), run_dir=args.run_dir, progress=False,
-                                validations=args.validations, checkpoint_every=1, stop_after_chunks=args.chunks,
-                                eval_videos=0)
+                                validations=args.validations, select=args.select, checkpoint_every=1,
+                                stop_after_chunks=args.chunks, eval_videos=0)
     for row in result.history:
         print(json.dumps({k: round(v, 4) for k, v in row.items()}))
     for row in result.validations:
