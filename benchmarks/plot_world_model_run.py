@@ -1,5 +1,7 @@
 """Learning curve of a world-model run directory against DreamerV3's published points, by environment steps and
 by minutes of the run (compilation included): training-episode returns, validations and the final evaluation.
+An arena with an action repeat (``action:repeat(N)``) counts decisions in its csv files; they are plotted as N
+environment steps each, as DreamerV3 counts them.
 
     python benchmarks/plot_world_model_run.py benchmarks/world_model_runs/dreamer-walker-walk-100k --task walker-walk
 """
@@ -9,6 +11,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import re
 from pathlib import Path
 
 import matplotlib
@@ -38,9 +41,12 @@ def main() -> None:
     validation = rows(args.run_dir / "validation.csv")
     evaluation = json.loads((args.run_dir / "evaluation.json").read_text())
     seconds = {r["env_steps"]: r["seconds"] for r in rows(args.run_dir / "train.csv")}
+    config = json.loads((args.run_dir / "config.json").read_text())
+    repeat = re.search(r"repeat\((\d+)\)", config["arena"])
+    per_decision = int(repeat.group(1)) if repeat else 1
     final = evaluation["summary"]["return_mean"] if "summary" in evaluation else evaluation["return_mean"]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for ax, x_of in zip(axes, (lambda s: s, lambda s: seconds[s] / 60), strict=True):
+    for ax, x_of in zip(axes, (lambda s: s * per_decision, lambda s: seconds[s] / 60), strict=True):
         ax.plot([x_of(r["env_steps"]) for r in train], [r["episode_return"] for r in train], label="training episodes")
         ax.plot([x_of(r["env_steps"]) for r in validation], [r["return_mean"] for r in validation], "o-",
                 label="validation (20 episodes)")
@@ -52,10 +58,9 @@ def main() -> None:
     published = DREAMERV3[args.task]
     axes[0].plot(list(published), list(published.values()), "s--", color="k", label="DreamerV3, published")
     axes[0].set_xlabel("environment steps")
-    axes[0].set_xlim(0, max(max(seconds), min(published)) * 1.05)
+    axes[0].set_xlim(0, max(max(seconds) * per_decision, min(published)) * 1.05)
     axes[1].set_xlabel("minutes (compilation included, validations and checkpoints too)")
     axes[0].legend(fontsize=8)
-    config = json.loads((args.run_dir / "config.json").read_text())
     fig.suptitle(f"{config['agent']} on {config['arena']} ({config.get('device', '')}, jax {config.get('jax', '')})")
     fig.tight_layout()
     out = args.out or args.run_dir / "curve.png"

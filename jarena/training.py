@@ -413,7 +413,8 @@ def _evaluate_and_write(agent, arena: Arena, policy, selected: dict, run_path: P
     _write_csv(log_path / "validation.csv", validations)
     (log_path / "evaluation.json").write_text(json.dumps(
         {"summary": evaluation.summary(), "selected": selected, "episodes": evaluation.per_episode()}, indent=2))
-    _plot(log_path / "learning_curve.png", history, validations, evaluation, agent.name, arena.name)
+    _plot(log_path / "learning_curve.png", history, validations, evaluation, agent.name, arena.name,
+          int(getattr(arena.tool, "substeps", 1) or 1))
     if write_videos:
         paths = [log_path / "videos" / f"eval_episode_{int(i)}" for i in evaluation.episodes[:videos]]
         try:
@@ -436,7 +437,10 @@ def _write_csv(path: Path, rows: list[dict[str, float]]) -> None:
     os.replace(partial, path)
 
 
-def _plot(path: Path, history, validations, evaluation, agent: str, arena: str) -> None:
+def _plot(path: Path, history, validations, evaluation, agent: str, arena: str, substeps: int = 1) -> None:
+    """Returns against steps: training episodes, validations, the evaluated policy and its final evaluation; with
+    ``select`` ``best:<metric>``, that validation metric on a second axis. A run without training episodes (an
+    agent learning from a dataset) is plotted against its updates."""
     try:
         import matplotlib
 
@@ -446,7 +450,8 @@ def _plot(path: Path, history, validations, evaluation, agent: str, arena: str) 
         return
     fig, ax = plt.subplots(figsize=(6, 4))
     finished = [r for r in history if np.isfinite(r["episode_return"])]  # chunks where no episode ended: no point
-    ax.plot([r["env_steps"] for r in finished], [r["episode_return"] for r in finished], label="training episodes")
+    if finished:
+        ax.plot([r["env_steps"] for r in finished], [r["episode_return"] for r in finished], label="training episodes")
     if validations:
         ax.plot([r["env_steps"] for r in validations], [r["return_mean"] for r in validations], "o-",
                 label="validation")
@@ -456,10 +461,23 @@ def _plot(path: Path, history, validations, evaluation, agent: str, arena: str) 
                 label=f"evaluated policy ({selected['select']}, step {selected['env_steps']})")
     ax.axhline(evaluation.summary()["return_mean"], color="k", ls="--",
                label=f"final evaluation of that policy ({evaluation.summary()['return_mean']:.1f})")
-    ax.set_xlabel("environment steps")
+    handles, labels = ax.get_legend_handles_labels()
+    metric = str(selected.get("select", ""))[5:] if str(selected.get("select", "")).startswith("best:") else ""
+    if metric and validations and metric in validations[0]:
+        twin = ax.twinx()
+        twin.plot([r["env_steps"] for r in validations], [r[metric] for r in validations], "s:", color="C2",
+                  label=f"validation {metric} (right axis)")
+        twin.set_ylabel(metric)
+        extra_handles, extra_labels = twin.get_legend_handles_labels()
+        handles, labels = handles + extra_handles, labels + extra_labels
+    if not any(r.get("episodes", 0) for r in history):
+        ax.set_xlabel("gradient updates")
+    else:
+        ax.set_xlabel("environment steps" if substeps == 1 else
+                      f"decisions (the arena's tool holds each for {substeps} control steps)")
     ax.set_ylabel("episode return")
     ax.set_title(f"{agent} on {arena}")
-    ax.legend()
+    ax.legend(handles, labels, fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
