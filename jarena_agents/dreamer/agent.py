@@ -277,7 +277,7 @@ def make_dreamer(config=None) -> TrainableAgent:
                                             method=RSSMCell.img_step)
             return following, (latent, raw)
 
-        last, (latents, raws) = jax.lax.scan(imagine, starts, keys)
+        last, (latents, raws) = jax.lax.scan(imagine, starts, keys, unroll=cfg.scan_unroll)
         trajectory = jax.tree_util.tree_map(lambda xs, x: jnp.concatenate([xs, x[None]], 0), latents, last)
         trajectory = jax.lax.stop_gradient(trajectory)  # (H + 1, N)
         raws = jax.lax.stop_gradient(raws)  # (H, N, A): REINFORCE, as DreamerV3 for discrete and Box actions
@@ -286,7 +286,7 @@ def make_dreamer(config=None) -> TrainableAgent:
         continues = wm.continue_probability(model, learner.model, trajectory)
         values = distributions.two_hot_mean(critic().apply(learner.critic, features), model.centres)
         slow_values = distributions.two_hot_mean(critic().apply(learner.slow_critic, features), model.centres)
-        returns = losses.lambda_returns(rewards, continues, values, cfg.discount, cfg.return_lambda)
+        returns = losses.lambda_returns(rewards, continues, values, cfg.discount, cfg.return_lambda, cfg.scan_unroll)
         weights = losses.trajectory_weights(continues, cfg.discount)
         scale = learner.scale.update(returns)
 

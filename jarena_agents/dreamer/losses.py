@@ -24,14 +24,16 @@ from jarena_agents.world_model import distributions as dist
 
 
 def lambda_returns(rewards: jax.Array, continues: jax.Array, values: jax.Array, discount: float,
-                   lam: float) -> jax.Array:
-    """TD(lambda) returns (H, N) of an imagined trajectory; inputs (H + 1, N), ``continues`` in [0, 1]."""
+                   lam: float, unroll: int = 1) -> jax.Array:
+    """TD(lambda) returns (H, N) of an imagined trajectory; inputs (H + 1, N), ``continues`` in [0, 1];
+    ``unroll``: steps per loop iteration (speed only)."""
     def step(following, inputs):
         reward, cont, value = inputs
         ret = reward + discount * cont * ((1 - lam) * value + lam * following)
         return ret, ret
 
-    _, returns = jax.lax.scan(step, values[-1], (rewards[1:], continues[1:], values[1:]), reverse=True)
+    _, returns = jax.lax.scan(step, values[-1], (rewards[1:], continues[1:], values[1:]), reverse=True,
+                              unroll=unroll)
     return returns
 
 

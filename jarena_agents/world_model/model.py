@@ -62,6 +62,10 @@ class WorldModelConfig:
     rep_scale: float = non_negative(0.1)  # weight of KL[posterior || sg(prior)]: trains the posterior
     model_learning_rate: float = positive(1e-4)  # Adam's (eps 1e-8), for the world model's parameters
     model_grad_clip: float = positive(1000.0)  # global-norm clip of the world model's gradients
+    # steps of each sequential scan (filtering, imagination, returns) unrolled into one loop iteration: fewer,
+    # larger iterations, a speed knob where each iteration's launch costs more than its work (small batches on a
+    # GPU); the same computation, up to floating-point rounding
+    scan_unroll: int = at_least(1, default=1)
 
 
 @struct.dataclass
@@ -227,7 +231,7 @@ def observe(model: WorldModel, params: dict, seq: Sequences, key: jax.Array | No
 
     time_major = lambda x: jnp.swapaxes(x, 0, 1)
     xs = (time_major(embed), time_major(seq.action), time_major(seq.is_first), keys)
-    _, (latents, posteriors, priors) = jax.lax.scan(step, start, xs)
+    _, (latents, posteriors, priors) = jax.lax.scan(step, start, xs, unroll=model.config.scan_unroll)
     return jax.tree_util.tree_map(time_major, (latents, posteriors, priors))
 
 
@@ -240,7 +244,7 @@ def imagine(model: WorldModel, params: dict, start: Latent, actions: jax.Array, 
         latent, _ = model.rssm.apply(params["rssm"], latent, action_t, key_t, method=RSSMCell.img_step)
         return latent, latent
 
-    _, latents = jax.lax.scan(step, start, (jnp.swapaxes(actions, 0, 1), keys))
+    _, latents = jax.lax.scan(step, start, (jnp.swapaxes(actions, 0, 1), keys), unroll=model.config.scan_unroll)
     return jax.tree_util.tree_map(lambda x: jnp.swapaxes(x, 0, 1), latents)
 
 

@@ -1,6 +1,7 @@
 """The world model: its loss on tiny inputs, the sequence layout, resets, determinism, images, and that a tiny
 model learns classic pendulum's dynamics and rewards well enough to plan over."""
 
+import dataclasses
 import functools
 
 import jax
@@ -124,6 +125,29 @@ def test_same_key_same_result_on_any_batch_size(pendulum):
     np.testing.assert_allclose(whole.deter[2:3], one.deter, atol=1e-5)
     step = jax.jit(lambda p, s, k: wm.loss(model, p, s, k)[0])
     assert step(params, seq, jax.random.key(3)) == step(params, seq, jax.random.key(3))
+
+
+def test_unrolled_scans_compute_the_same_loss_and_latents(pendulum):
+    """``scan_unroll`` (3 over 7 steps: a remainder too) changes the loop, not the result: observed latents,
+    imagined latents and the loss agree with the rolled scans."""
+    rolled = wm.make_world_model(pendulum.spec, TINY)
+    unrolled = wm.make_world_model(pendulum.spec, dataclasses.replace(TINY, scan_unroll=3))
+    params = init_params(rolled, jax.random.key(0))
+    experience = jax.tree_util.tree_map(lambda x: jnp.swapaxes(x, 0, 1),
+                                        random_transitions(pendulum, jax.random.key(1), 2, 7))
+
+    @functools.partial(jax.jit, static_argnums=0)
+    def outputs(model, params, experience):
+        seq = wm.sequences_from_windows(pendulum.spec, experience)
+        seq = seq.replace(is_first=seq.is_first.at[:, 3].set(True))
+        latents, _, _ = wm.observe(model, params, seq, jax.random.key(2))
+        start = jax.tree_util.tree_map(lambda x: x[:, -1], latents)
+        imagined = wm.imagine(model, params, start, seq.action, jax.random.key(3))
+        return latents, imagined, wm.loss(model, params, seq, jax.random.key(4))[0]
+
+    for a, b in zip(jax.tree_util.tree_leaves(outputs(rolled, params, experience)),
+                    jax.tree_util.tree_leaves(outputs(unrolled, params, experience)), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)
 
 
 def test_images_are_encoded_and_decoded():

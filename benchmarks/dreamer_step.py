@@ -1,0 +1,80 @@
+"""Where a Dreamer run's time goes: milliseconds per update (one collection step of every arena plus the update's
+gradient steps), compiled chunks timed after their first call, for the agent's committed config with ``--set``
+overrides. Run it once per variant in a fresh process (XLA flags are read at start-up), e.g. on a GPU:
+
+    A="dmc|domain:walker,task:walk,action:repeat(2)"
+    python benchmarks/dreamer_step.py "$A"                                # the default config
+    python benchmarks/dreamer_step.py "$A" --set learning_starts=100000000  # collection alone
+    python benchmarks/dreamer_step.py "$A" --set num_arenas=64              # more arenas per update
+    XLA_FLAGS=--xla_gpu_enable_command_buffer=FUSION,CUBLAS,CUBLASLT,CUSTOM_CALL,CUDNN,WHILE,CONDITIONAL \\
+        python benchmarks/dreamer_step.py "$A"
+
+Prints one JSON line: the variant, milliseconds per update and per decision, gradient steps per update, and the
+minutes of training that 500k environment steps would take at that rate (decisions times the arena's action repeat).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import time
+
+import jax
+
+import jarena
+import jarena_agents
+from jarena.cli import parse_override
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("arena")
+    parser.add_argument("--agent", default="dreamer")
+    parser.add_argument("--config", default="default")
+    parser.add_argument("--set", action="append", type=parse_override, default=[], metavar="KEY=VALUE")
+    parser.add_argument("--updates", type=int, default=20, help="updates per timed chunk")
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+
+    arena = jarena.build_arena(args.arena)
+    overrides = dict(args.set)
+    base = jarena.retrieve_config(args.agent, arena, args.config)
+    # learning starts once every arena holds one sequence (unless overridden), so the timed chunks train
+    config = dict(base, learning_starts=0, **overrides)
+    agent = jarena_agents.build_agent(args.agent, config)
+    cfg = agent.settings
+    warmup = -(-(cfg.sequence_length + 1) // cfg.rollout_length)  # updates until every arena holds a sequence
+    state = agent.init_training(jax.random.key(0), arena)
+    fill = jax.jit(lambda ts: agent.train(ts, arena, warmup))
+    chunk = jax.jit(lambda ts: agent.train(ts, arena, args.updates))
+    start = time.perf_counter()
+    state, _ = fill(state)
+    jax.block_until_ready(state)
+    fill_s = time.perf_counter() - start
+    start = time.perf_counter()
+    state, _ = chunk(state)
+    jax.block_until_ready(state)
+    first_s = time.perf_counter() - start
+    times = []
+    for _ in range(args.repeats):
+        start = time.perf_counter()
+        state, metrics = chunk(state)
+        jax.block_until_ready(state)
+        times.append(time.perf_counter() - start)
+    per_update = statistics.median(times) / args.updates
+    repeat = int(getattr(arena.tool, "substeps", 1) or 1)
+    decisions = cfg.steps_per_update
+    trained = bool(float(jax.device_get(metrics["model_loss"]).mean()) != 0.0) if "model_loss" in metrics else None
+    print(json.dumps({
+        "arena": args.arena, "overrides": overrides, "xla_flags": os.environ.get("XLA_FLAGS", ""),
+        "device": jax.devices()[0].device_kind, "jax": jax.__version__,
+        "num_arenas": cfg.num_arenas, "gradient_steps_per_update": cfg.gradient_steps, "trained": trained,
+        "ms_per_update": round(per_update * 1e3, 2), "ms_per_decision": round(per_update * 1e3 / decisions, 3),
+        "minutes_for_500k_env_steps": round(500_000 / (decisions * repeat) * per_update / 60, 1),
+        "fill_and_compile_s": round(fill_s, 1), "first_chunk_s": round(first_s, 1)}), flush=True)
+
+
+if __name__ == "__main__":
+    main()
