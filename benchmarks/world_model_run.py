@@ -39,7 +39,13 @@ def main() -> None:
 
     start = time.perf_counter()
     arena = jarena.build_arena(args.arena)
-    config = dict(jarena.retrieve_config(args.agent, arena, args.config), **dict(args.set))
+    try:
+        committed = jarena.retrieve_config(args.agent, arena, args.config)
+    except FileNotFoundError:  # as `jarena train`: no committed default for this arena, the agent's own defaults
+        if args.config != "default":
+            raise
+        committed = {}
+    config = dict(committed, **dict(args.set))
     if args.steps is not None:
         config["total_steps"] = args.steps
     agent = jarena_agents.build_agent(args.agent, config)
