@@ -18,7 +18,7 @@ def test_the_correlation_is_the_hand_computed_sum_and_finds_a_placed_pattern():
     scene = np.zeros((12, 10, 2), np.float32)
     scene[5:8, 2:5] = pattern
     scene += 0.01 * rng.normal(size=scene.shape).astype(np.float32)
-    out = np.asarray(networks.correlate(jnp.asarray(scene), jnp.asarray(np.stack([pattern, other]))))
+    out = np.asarray(jax.jit(networks.correlate)(scene, np.stack([pattern, other])))
     assert out.shape == (10, 8, 2)
     hand = np.zeros((10, 8, 2), np.float32)
     for r in range(10):
@@ -53,8 +53,8 @@ def test_the_transport_scores_the_pick_window_where_it_reappears_with_its_turn()
     image[4:7, 3:7, :3] = blob  # the object, its pick at (5, 4)
     image[14:18, 12:15, 3:] = np.rot90(blob, -1)  # the target: the pick point goes to (15, 13)
     yaws = jnp.array([0.0, np.pi / 2, np.pi, -np.pi / 2])
-    logits = np.asarray(networks.transport_logits(Channels(slice(3, 6)), Channels(slice(0, 3)), None, None,
-                                                  jnp.asarray(image), jnp.array([5, 4]), yaws, 8))
+    logits = np.asarray(jax.jit(lambda image, pick: networks.transport_logits(
+        Channels(slice(3, 6)), Channels(slice(0, 3)), None, None, image, pick, yaws, 8))(image, np.array([5, 4])))
     assert logits.shape == (24, 20, 4)
     assert np.unravel_index(np.argmax(logits), logits.shape) == (15, 13, 1)
     np.testing.assert_allclose(logits[15, 13, 1], np.sum(blob ** 2), rtol=1e-4)

@@ -8,6 +8,8 @@ import pytest
 
 from jarena_agents.transporter import se2
 
+_crops = jax.jit(se2.rotated_crops, static_argnums=3)
+
 
 def test_turned_crops_are_quarter_turns_of_the_window_about_the_pick():
     """Crop pixel (size // 2, size // 2) is the centre; dropping the crop's first row and column leaves the window of
@@ -15,7 +17,7 @@ def test_turned_crops_are_quarter_turns_of_the_window_about_the_pick():
     ``np.rot90(window, -1)`` (clockwise as the array prints)."""
     image = np.random.default_rng(0).integers(0, 255, (20, 18, 2)).astype(np.float32)
     centre = np.array([9, 8])
-    crops = np.asarray(se2.rotated_crops(jnp.asarray(image), centre, jnp.array([0, np.pi / 2, -np.pi / 2, np.pi]), 8))
+    crops = np.asarray(_crops(image, centre, np.array([0, np.pi / 2, -np.pi / 2, np.pi], np.float32), 8))
     window = image[centre[0] - 3:centre[0] + 4, centre[1] - 3:centre[1] + 4]
     assert crops.shape == (4, 8, 8, 2)
     for crop, turns in zip(crops, [0, -1, 1, 2], strict=True):
@@ -23,16 +25,17 @@ def test_turned_crops_are_quarter_turns_of_the_window_about_the_pick():
     # a point one column to the right of the centre (+x) appears one row below it (+y) after a quarter turn
     assert crops[1][4 + 1, 4].tolist() == image[9, 8 + 1].tolist()
     # outside the image reads zeros
-    corner = np.asarray(se2.rotated_crops(jnp.asarray(image), np.array([0, 0]), jnp.zeros(1), 8))[0]
+    corner = np.asarray(_crops(image, np.array([0, 0]), np.zeros(1, np.float32), 8))[0]
     assert np.all(corner[:4] == 0) and np.all(corner[:, :4] == 0) and np.array_equal(corner[4:, 4:], image[:4, :4])
 
 
 def test_yaw_bins_round_trip_and_wrap():
-    yaws = se2.bin_yaws(36)
-    assert float(jnp.min(yaws)) >= -np.pi and float(jnp.max(yaws)) <= np.pi
-    np.testing.assert_array_equal(se2.yaw_bins(yaws, 36), np.arange(36))
-    np.testing.assert_array_equal(se2.yaw_bins(jnp.array([-np.pi, np.pi, 0.04, -0.09, 2 * np.pi]), 36), [18, 18, 0,
-                                                                                                        35, 0])
+    yaws, bins, wrapped = (np.asarray(x) for x in jax.jit(lambda others: (
+        se2.bin_yaws(36), se2.yaw_bins(se2.bin_yaws(36), 36), se2.yaw_bins(others, 36)))(
+        np.array([-np.pi, np.pi, 0.04, -0.09, 2 * np.pi], np.float32)))
+    assert yaws.shape == (36,) and float(np.min(yaws)) >= -np.pi and float(np.max(yaws)) <= np.pi
+    np.testing.assert_array_equal(bins, np.arange(36))
+    np.testing.assert_array_equal(wrapped, [18, 18, 0, 35, 0])
 
 
 def test_augmentation_keeps_the_labels_on_the_same_image_content():
@@ -69,12 +72,17 @@ def test_a_motion_that_cannot_keep_the_labels_in_the_image_is_none():
     np.testing.assert_array_equal(labels, points)
 
 
+# (crop (20, 20), offset (2,)): the window of size 20 around ``centre`` turned by ``yaw``, and ``offset`` turned
+_turned = jax.jit(lambda image, centre, offset, yaw: (se2.rotated_crops(image, centre, yaw[None], 20)[0, ..., 0],
+                                                      se2.rotate(offset, yaw)))
+
+
 @pytest.mark.parametrize("yaw", [0.3, -2.0])
 def test_a_crop_turns_with_the_points_it_shows(yaw):
     """A marked pixel at an offset from the centre appears in the crop turned by ``yaw`` at the turned offset."""
     image = np.zeros((31, 31, 1), np.float32)
     centre, offset = np.array([15, 15]), np.array([4.0, -6.0])
     image[centre[0] + 4, centre[1] - 6] = 1.0
-    crop = np.asarray(se2.rotated_crops(jnp.asarray(image), centre, jnp.array([yaw]), 20))[0, ..., 0]
-    expected = np.round(np.asarray(se2.rotate(offset, yaw))).astype(int) + 10
+    crop, turned = _turned(image, centre, offset, np.float32(yaw))
+    crop, expected = np.asarray(crop), np.round(np.asarray(turned)).astype(int) + 10
     assert crop[expected[0], expected[1]] == 1.0

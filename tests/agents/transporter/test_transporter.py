@@ -24,23 +24,23 @@ UPDATES = 150
 @pytest.fixture(scope="module")
 def trained():
     """The agent's ``train`` from the train state its ``init_training`` makes of a dataset's arrays; then it acts on
-    the training scenes, on 32 new ones, and on the first three of those alone. One compiled program."""
+    the training scenes and 32 new ones (one batch of 48), and on the first three new ones alone. One compiled
+    program."""
     agent = jarena_agents.build_agent("transporter", TINY)
     model = build_model(make_config(TransporterConfig, TINY))
     demos, new = scenes(16, seed=0), scenes(32, seed=1)
-    seen, unseen = (infos({"rgb": d["rgb"], "height": d["height"]}) for d in (demos, new))
-    three = jax.tree_util.tree_map(lambda x: x[:3], unseen)
+    both = infos({k: np.concatenate([demos[k], new[k]]) for k in ("rgb", "height")})
+    three = infos({k: new[k][:3] for k in ("rgb", "height")})
 
     @jax.jit
     def run(key):
         state = model.start(key, jax.tree_util.tree_map(jnp.asarray, demos))
         state, metrics = agent.train(state, None, UPDATES)
         policy = agent.policy(state, SPEC)
-        return metrics, [agent.act(policy, info, key)[0] for info in (seen, unseen, three)]
+        return metrics, [agent.act(policy, info, key)[0] for info in (both, three)]
 
-    metrics, actions = run(jax.random.key(0))
-    return dict(metrics=jax.tree_util.tree_map(np.asarray, metrics), actions=[np.asarray(a) for a in actions],
-                demos=demos, new=new)
+    metrics, (actions, three_actions) = jax.tree_util.tree_map(np.asarray, run(jax.random.key(0)))
+    return dict(metrics=metrics, actions=[actions[:16], actions[16:], three_actions], demos=demos, new=new)
 
 
 def _hits(actions: np.ndarray, demos: dict) -> tuple[float, float, float]:

@@ -1,8 +1,9 @@
 """The Raven block-insertion arena: episodes, the heightmap, the suction primitive, faults and the oracle.
 
 The arena's step takes some 19 s of CPU to compile (MJX's physics), so every test here shares one arena's jitted
-batched reset, step and oracle (compiled once for a batch of three and once for one arena, for the batch-size
-check), compiled with XLA's quick options (the step in 7.5 s); the behaviour checked does not depend on them.
+batched reset, step and oracle for a batch of three, and one program that starts, acts on and steps one arena alone
+(unbatched) for the batch-size check; reset and step are traced once, for one arena, and batched by ``vmap``. All
+are compiled with XLA's quick options (the step in 7.5 s): the behaviour checked does not depend on them.
 """
 
 from types import SimpleNamespace
@@ -20,24 +21,40 @@ from jarena.core import faults
 from tests.arenas.raven import FAST_COMPILE
 
 ARENA = "raven|task:block-insertion"
-EPISODES = jnp.arange(3)  # eval episodes 0, 1, 2
+EPISODES = np.arange(3)  # eval episodes 0, 1, 2
 
 
 @pytest.fixture(scope="module")
 def raven():
-    """The arena, its oracle, and the jitted batched programs, with eval episodes 0-2 reset."""
+    """The arena, its oracle, the jitted batched programs and the one-arena program, with eval episodes 0-2 reset."""
     arena = jarena.build_arena(ARENA)
     oracle = jarena_agents.build_agent("oracle_raven")
-    reset = jax.jit(jax.vmap(lambda e: arena.reset(None, episode=e)), compiler_options=FAST_COMPILE)
-    step = jax.jit(jax.vmap(arena.step), compiler_options=FAST_COMPILE)
-    act = jax.jit(lambda info, key, state: oracle.act(oracle.init(key, arena.spec, 1), info, key, state)[0],
-                  compiler_options=FAST_COMPILE)
+    reset_one, step_one = jax.jit(lambda e: arena.reset(None, episode=e)), jax.jit(arena.step)  # traced once
+
+    def act(info, key, state):
+        return oracle.act(oracle.init(key, arena.spec, 1), info, key, state)[0]
+
+    def alone(episode, key):
+        """One arena, unbatched: its start, the oracle's action and the step, in one program."""
+        state, info = reset_one(episode)
+        action = act(info, key, state)
+        after, outcome = step_one(state, action)
+        return info, action, after, outcome
+
+    reset, step = (jax.jit(jax.vmap(f), compiler_options=FAST_COMPILE) for f in (reset_one, step_one))
     states, infos = reset(EPISODES)
-    return SimpleNamespace(arena=arena, reset=reset, step=step, act=act, states=states, infos=infos)
+    return SimpleNamespace(arena=arena, reset=reset, step=step, act=jax.jit(act, compiler_options=FAST_COMPILE),
+                           alone=jax.jit(alone, compiler_options=FAST_COMPILE), states=states, infos=infos)
 
 
-_row = jax.jit(lambda tree, i: jax.tree_util.tree_map(lambda x: x[i], tree))
 _poses = jax.jit(jax.vmap(scoring.planar_poses))  # (B, 2, 4): the block's and the fixture's (x, y, z, yaw)
+_pixels = jax.jit(heightmap.world_to_pixel)
+# (B,): the z component of each arena's block's up axis
+_block_up = jax.jit(jax.vmap(lambda p: poses.rotate(physics.object_poses(p)[1][0], jnp.asarray([0.0, 0.0, 1.0]))[2]))
+
+
+def _host(tree):
+    return jax.tree_util.tree_map(np.asarray, tree)
 
 
 def _assert_same(a, b, what):
@@ -68,44 +85,43 @@ def test_episodes_are_fixed_and_laid_out_apart_in_the_workspace(raven):
         assert np.all(xy[:, 0] > 0.25 + 0.07) and np.all(xy[:, 0] < 0.75 - 0.07)
         assert np.all(np.abs(xy[:, 1]) < 0.5 - 0.07)
     # the fixture's 45-pixel square around its origin is clear of the block
-    rc_block, rc_fixture = (np.asarray(heightmap.world_to_pixel(p[:, :2])) for p in (block, fixture))
+    rc_block, rc_fixture = np.asarray(_pixels(np.stack([block[:, :2], fixture[:, :2]])))
     assert np.all(np.max(np.abs(rc_block - rc_fixture), axis=-1) > 22)
     np.testing.assert_allclose(planar[:, :, 2], 0.02, atol=1e-6)  # on the table
     np.testing.assert_allclose(infos.goal, fixture, atol=1e-6)  # the goal: the fixture's pose
     assert len(set(np.round(block[:, 0], 4))) == 3  # three different layouts
     # the heightmap: the block's corner (its origin) 4 cm high in its red, the table 0 in dark grey
     rc = np.round(rc_block).astype(int)
+    observation = _host(infos.observation)
     for i, (r, c) in enumerate(rc):
-        assert float(infos.observation["height"][i, r, c]) == pytest.approx(0.04, abs=1e-6)
-        assert infos.observation["rgb"][i, r, c].tolist() == [255, 87, 89]
-        assert float(infos.observation["height"][i, 2, 2]) == 0.0 and infos.observation["rgb"][i, 2, 2].tolist() == [
-            51, 51, 51]
-    assert bool(jnp.all(jax.vmap(arena.observation_spec.contains)(infos.observation)))
+        assert float(observation["height"][i, r, c]) == pytest.approx(0.04, abs=1e-6)
+        assert observation["rgb"][i, r, c].tolist() == [255, 87, 89]
+        assert float(observation["height"][i, 2, 2]) == 0.0 and observation["rgb"][i, 2, 2].tolist() == [51, 51, 51]
+    assert bool(np.all(jax.jit(jax.vmap(arena.observation_spec.contains))(infos.observation)))
 
 
 def test_the_oracle_inserts_the_block_the_same_in_any_batch(raven):
     """Eval episodes 0-2 succeed in one action, the block within a millimetre of the fixture's pose, the weld
-    holding it to the cup while lifted. Episode 1 alone (a batch of one) starts and is acted on to the same bits,
-    and steps to the same outcome: MJX's solver rounds differently in batches of different sizes (some 1e-7 m
+    holding it to the cup while lifted. Episode 1 alone (one arena, unbatched) starts and is acted on to the same
+    bits, and steps to the same outcome: MJX's solver rounds differently in batches of different sizes (some 1e-7 m
     per physics step)."""
     actions = raven.act(raven.infos, jax.random.key(0), raven.states)
     after, info = raven.step(raven.states, actions)
     assert info.success.tolist() == [True] * 3 and info.terminated.tolist() == [True] * 3
     np.testing.assert_allclose(info.reward, 1.0)
-    assert float(jnp.max(info.metrics["position_error"])) < 1e-3
-    assert float(jnp.max(info.metrics["rotation_error"])) < np.deg2rad(1.0)
+    metrics = _host(info.metrics)
+    assert float(np.max(metrics["position_error"])) < 1e-3
+    assert float(np.max(metrics["rotation_error"])) < np.deg2rad(1.0)
     # while lifted for a control step the block sags under a quarter of the free fall of that time
     fall = 0.5 * 9.81 * raven.arena.dynamics.timestep ** 2
-    assert 0 < float(jnp.max(info.metrics["grasp_slip"])) < min(0.25 * fall, 1e-3)
+    assert 0 < float(np.max(metrics["grasp_slip"])) < min(0.25 * fall, 1e-3)
 
-    one_state, one_info = raven.reset(EPISODES[1:2])
-    one_actions = raven.act(one_info, jax.random.key(0), one_state)
-    one_after, one_step = raven.step(one_state, one_actions)
-    _assert_same((one_info, one_actions), jax.tree_util.tree_map(lambda x: x[1:2], (raven.infos, actions)),
+    one_info, one_action, one_after, one_step = raven.alone(EPISODES[1], jax.random.key(0))
+    _assert_same((one_info, one_action), jax.tree_util.tree_map(lambda x: np.asarray(x)[1], (raven.infos, actions)),
                  "episode 1 alone and in a batch of three")
-    assert one_step.success.tolist() == [True] and float(one_step.reward[0]) == float(info.reward[1])
-    np.testing.assert_allclose(one_after.physics.data.qpos[0], after.physics.data.qpos[1], atol=1e-5)
-    np.testing.assert_allclose(one_step.observation["height"][0], info.observation["height"][1], atol=1e-5)
+    assert one_step.success.shape == () and bool(one_step.success) and float(one_step.reward) == float(info.reward[1])
+    np.testing.assert_allclose(one_after.physics.data.qpos, np.asarray(after.physics.data.qpos)[1], atol=1e-5)
+    np.testing.assert_allclose(one_step.observation["height"], np.asarray(info.observation["height"])[1], atol=1e-5)
 
 
 def _free_point(planar: np.ndarray) -> np.ndarray:
@@ -122,9 +138,9 @@ def test_suction_carries_a_block_where_the_primitive_puts_it_and_hand_placed_blo
     match. Then bad actions: a NaN faults and runs the no-op, a pick off the heightmap is clipped."""
     states = raven.states
     planar = np.asarray(_poses(states.physics))
-    pick = np.asarray(heightmap.world_to_pixel(planar[0, 0, :2]))
     place_xy = _free_point(planar[0])
-    action = np.concatenate([pick, np.asarray(heightmap.world_to_pixel(place_xy)), [0.5]]).astype(np.float32)
+    pick, place = np.asarray(_pixels(np.stack([planar[0, 0, :2], place_xy])))
+    action = np.concatenate([pick, place, [0.5]]).astype(np.float32)
 
     # blocks 1 and 2 set in their fixture, off along the fixture's diagonal
     qpos = np.asarray(states.physics.data.qpos).copy()
@@ -137,12 +153,12 @@ def test_suction_carries_a_block_where_the_primitive_puts_it_and_hand_placed_blo
     after, info = raven.step(states, jnp.asarray(np.stack([action, no_op, no_op])))
     moved = np.asarray(_poses(after.physics))
     np.testing.assert_allclose(moved[0, 0, :2], place_xy, atol=1e-3)
-    assert float(poses.wrap_angle(moved[0, 0, 3] - planar[0, 0, 3] - 0.5)) == pytest.approx(0.0, abs=np.deg2rad(0.5))
+    turn = moved[0, 0, 3] - planar[0, 0, 3] - 0.5  # wrapped to [-pi, pi)
+    assert float(np.mod(turn + np.pi, 2 * np.pi) - np.pi) == pytest.approx(0.0, abs=np.deg2rad(0.5))
     assert moved[0, 0, 2] == pytest.approx(0.02, abs=5e-4)
-    _, up = physics.object_poses(_row(after.physics, 0))
-    assert float(poses.rotate(up[0], jnp.asarray([0.0, 0.0, 1.0]))[2]) > np.cos(np.deg2rad(1.0))
-    assert not bool(after.physics.held[0] >= 0)  # released
-    assert float(info.metrics["grasp_slip"][0]) < 1e-3
+    assert float(np.asarray(_block_up(after.physics))[0]) > np.cos(np.deg2rad(1.0))
+    assert not np.asarray(after.physics.held)[0] >= 0  # released
+    assert float(np.asarray(info.metrics["grasp_slip"])[0]) < 1e-3
     np.testing.assert_allclose(moved[1:, 0, :2], qpos[1:, :2], atol=5e-4)  # the set blocks stay put
     assert info.metrics["placed"].tolist() == [0.0, 1.0, 0.0] and info.success.tolist() == [False, True, False]
     np.testing.assert_allclose(info.reward, [0.0, 1.0, 0.0])
@@ -150,8 +166,9 @@ def test_suction_carries_a_block_where_the_primitive_puts_it_and_hand_placed_blo
     bad = np.stack([np.full(5, np.nan, np.float32), np.asarray([-40.0, 400.0, 500.0, -3.0, 9.0], np.float32),
                     action])
     after_bad, info_bad = raven.step(raven.states, jnp.asarray(bad))
-    assert faults.describe(info_bad.fault[0]) == ["invalid action"] and bool(info_bad.terminated[0])
-    assert float(info_bad.reward[0]) == 0.0
-    assert int(info_bad.fault[1]) == 0 and int(info_bad.fault[2]) == 0
+    fault, terminated = np.asarray(info_bad.fault), np.asarray(info_bad.terminated)
+    assert faults.describe(fault[0]) == ["invalid action"] and bool(terminated[0])
+    assert float(np.asarray(info_bad.reward)[0]) == 0.0
+    assert int(fault[1]) == 0 and int(fault[2]) == 0
     np.testing.assert_allclose(np.asarray(_poses(after_bad.physics))[:2, 0], planar[:2, 0], atol=1e-4)
-    assert bool(jnp.all(jnp.isfinite(after_bad.physics.data.qpos)))
+    assert bool(np.all(np.isfinite(np.asarray(after_bad.physics.data.qpos))))

@@ -7,11 +7,16 @@ import numpy as np
 from jarena.arenas.raven import geometry, heightmap, layout, poses
 
 
+@jax.jit
+def _pose(yaw):
+    """The rotation matrix (3, 3) of a turn by ``yaw`` about +z."""
+    q = poses.yaw_quat(yaw)
+    return jnp.stack([poses.rotate(q, e) for e in jnp.eye(3)], axis=-1)
+
+
 def _box(x, y, z, half, yaw=0.0):
     """A box's (pos, mat, size) at (x, y, z) with half extents ``half``, turned ``yaw`` about +z."""
-    q = poses.yaw_quat(jnp.float32(yaw))
-    mat = jnp.stack([poses.rotate(q, e) for e in jnp.eye(3)], axis=-1)
-    return jnp.asarray([x, y, z], jnp.float32), mat, jnp.asarray(half, jnp.float32)
+    return jnp.asarray([x, y, z], jnp.float32), _pose(np.float32(yaw)), jnp.asarray(half, jnp.float32)
 
 
 def _stack(*boxes):
@@ -20,12 +25,13 @@ def _stack(*boxes):
 
 def test_a_ray_finds_the_top_of_the_highest_box_or_the_table():
     boxes = _stack(_box(0.5, 0.0, 0.02, (0.02, 0.02, 0.02), yaw=np.pi / 4), _box(0.6, 0.0, 0.05, (0.01, 0.01, 0.05)))
-    points = jnp.asarray([[0.5, 0.0], [0.5 + 0.027, 0.0], [0.5 + 0.029, 0.0], [0.6, 0.0], [0.7, 0.0]])
-    height, box = jax.jit(geometry.cast_down)(points, *boxes, jnp.ones(2, bool))
+    points = np.asarray([[0.5, 0.0], [0.5 + 0.027, 0.0], [0.5 + 0.029, 0.0], [0.6, 0.0], [0.7, 0.0]], np.float32)
+    cast_down = jax.jit(geometry.cast_down)
+    height, box = cast_down(points, *boxes, np.ones(2, bool))
     # the turned box reaches 2.83 cm along x (its corner), not 2.9
     np.testing.assert_allclose(height, [0.04, 0.04, 0.0, 0.1, 0.0], atol=1e-6)
     assert box.tolist() == [0, 0, -1, 1, -1]
-    hidden, _ = jax.jit(geometry.cast_down)(points, *boxes, jnp.asarray([False, True]))
+    hidden, _ = cast_down(points, *boxes, np.asarray([False, True]))
     assert float(hidden[0]) == 0.0
 
 
@@ -53,9 +59,9 @@ def test_free_space_is_the_erosion_of_what_is_taken():
 
 
 def test_pixels_and_points_convert_both_ways():
-    rc = jnp.asarray([[0.0, 0.0], [319.0, 159.0], [12.25, 100.5]])
-    xy = heightmap.pixel_to_world(rc)
+    rc = np.asarray([[0.0, 0.0], [319.0, 159.0], [12.25, 100.5]], np.float32)
+    xy = np.asarray(jax.jit(heightmap.pixel_to_world)(rc))
     np.testing.assert_allclose(xy[0], [0.25 + 0.0015625, -0.5 + 0.0015625])
     np.testing.assert_allclose(xy[1], [0.75 - 0.0015625, 0.5 - 0.0015625])
-    np.testing.assert_allclose(heightmap.world_to_pixel(xy), rc, atol=1e-4)
+    np.testing.assert_allclose(jax.jit(heightmap.world_to_pixel)(xy), rc, atol=1e-4)
     assert (heightmap.ROWS, heightmap.COLS) == (320, 160) and heightmap.PIXEL_SIZE == 0.003125

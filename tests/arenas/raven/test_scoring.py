@@ -15,17 +15,17 @@ TARGET = (0.5, 0.1, 0.02, 0.3)
 
 def _goal(objects=1, symmetry=2 * np.pi, present=None) -> Goal:
     """A goal for ``objects`` objects (scene indices 0, 1, ...), each allowed on its own target at ``TARGET``."""
-    return Goal(objects=jnp.arange(objects, dtype=jnp.int32),
-                present=jnp.ones(objects, bool) if present is None else jnp.asarray(present),
-                symmetry=jnp.full(objects, symmetry, jnp.float32),
-                targets=jnp.asarray([TARGET] * objects, jnp.float32), target_present=jnp.ones(objects, bool),
-                matches=jnp.eye(objects, dtype=bool))
+    return Goal(objects=np.arange(objects, dtype=np.int32),
+                present=np.ones(objects, bool) if present is None else np.asarray(present),
+                symmetry=np.full(objects, symmetry, np.float32),
+                targets=np.asarray([TARGET] * objects, np.float32), target_present=np.ones(objects, bool),
+                matches=np.eye(objects, dtype=bool))
 
 
 def _at(distance=0.0, turn=0.0, angle=np.pi / 4):
     """float32 (4,): a pose ``distance`` metres from the target along ``angle`` and turned ``turn`` radians."""
     x, y, z, yaw = TARGET
-    return jnp.asarray([x + distance * np.cos(angle), y + distance * np.sin(angle), z, yaw + turn], jnp.float32)
+    return np.asarray([x + distance * np.cos(angle), y + distance * np.sin(angle), z, yaw + turn], np.float32)
 
 
 _score = jax.jit(scoring.score)
@@ -55,7 +55,7 @@ def test_heading_errors_count_modulo_the_symmetry():
 
 
 def test_partial_credit_counts_the_present_objects():
-    placed_and_not = jnp.stack([_at(0.0), _at(0.05)])
+    placed_and_not = np.stack([_at(0.0), _at(0.05)])
     assert float(_score(placed_and_not, _goal(2), PoseGoalParams())) == 0.5
     assert float(_score(placed_and_not, _goal(2, present=[True, False]), PoseGoalParams())) == 1.0
     # the tolerance is a param: 5 cm (place-red-in-green's) accepts the second
@@ -72,7 +72,7 @@ def test_an_episodes_rewards_add_up_to_its_score():
                                             symmetry=jnp.asarray([2 * np.pi], jnp.float32),
                                             targets=scoring.planar_poses(p)[1:2], target_present=jnp.ones(1, bool),
                                             matches=jnp.ones((1, 1), bool)), "block-insertion")
-    physics = raven_dynamics(scene).init(None, None)
+    physics = jax.jit(raven_dynamics(scene).init)(None, None)
     fixture = jnp.asarray([[0.5, 0.1, 0.02]])
     quat = jnp.asarray([[np.cos(0.15), 0.0, 0.0, np.sin(0.15)]] * 2, jnp.float32)  # yaw 0.3, as TARGET
 

@@ -65,30 +65,37 @@ def test_the_oracle_succeeds_with_ravens_partial_credit(task):
 
 @functools.cache
 def _scene(task):
-    """A task, its initial (parked) physics and its jitted goal and score."""
+    """A task, its initial (parked) physics and objects' positions, and its jitted goal and score."""
     spec = tasks.TASKS[task]()
-    start = physics.raven_dynamics(build_scene(spec.items)).init(None, None)
+    dynamics = physics.raven_dynamics(build_scene(spec.items))
+
+    @jax.jit
+    def parked_start():
+        start = dynamics.init(None, None)
+        return start, physics.object_poses(start)[0]
+
+    start, parked = parked_start()
     params = scoring.PoseGoalParams(pos_eps=spec.pos_eps)
 
     @jax.jit
-    def goal_and_score(pos, yaw, stage, progress):
+    def goal_and_score(start, pos, yaw, stage, progress):
         placed = physics.place_objects(start, pos, jax.vmap(lambda y: jnp.asarray(
             [jnp.cos(y / 2), 0.0, 0.0, jnp.sin(y / 2)]))(yaw))
         goal = spec.goal(placed)
         return goal, scoring.score(scoring.planar_poses(placed), goal, params, stage, progress)
 
-    parked = np.asarray(physics.object_poses(start)[0])
-    return spec, parked, goal_and_score
+    return start, np.asarray(parked), goal_and_score
 
 
 def _score(task, placed: dict, stage=0, progress=0.0):
-    """The goal and the score with objects (scene index -> (x, y, z, yaw)) placed by hand, the others parked."""
-    spec, parked, goal_and_score = _scene(task)
+    """The goal (on the host) and the score with objects (scene index -> (x, y, z, yaw)) placed by hand, the others
+    parked."""
+    start, parked, goal_and_score = _scene(task)
     pos, yaw = parked.copy(), np.zeros(len(parked), np.float32)
     for i, (x, y, z, theta) in placed.items():
         pos[i], yaw[i] = (x, y, z), theta
-    goal, value = goal_and_score(jnp.asarray(pos), jnp.asarray(yaw), stage, progress)
-    return goal, float(value)
+    goal, value = goal_and_score(start, pos, yaw, stage, progress)
+    return jax.tree_util.tree_map(np.asarray, goal), float(value)
 
 
 def test_red_blocks_score_in_any_green_bowl_within_5_cm():
@@ -118,15 +125,16 @@ def test_a_box_aligns_with_its_corner_in_four_poses():
     assert _score("align-box-corner", {1: corner, 0: (x, y, 0.03, yaw + np.pi / 4)})[1] == 0.0
     assert _score("align-box-corner", {1: corner, 0: (x + 0.011, y, 0.03, yaw)})[1] == 0.0
     # a 12 x 8 cm box in each target pose has a corner on the marks' corner, at (6, 4) cm in the corner's frame
-    size = jnp.asarray([0.12, 0.08, 0.04])
+    size = np.asarray([0.12, 0.08, 0.04], np.float32)
     cos, sin = np.cos(corner[3]), np.sin(corner[3])
     marks_corner = np.asarray(corner[:2]) + np.asarray([[cos, -sin], [sin, cos]]) @ np.asarray([0.06, 0.04])
-    for x, y, _, yaw in np.asarray(tasks.corner_targets(jnp.asarray(corner), size)):
+    corner_targets, marks = (np.asarray(x) for x in jax.jit(lambda corner, size: (
+        tasks.corner_targets(corner, size), tasks.corner_marks(size)))(np.asarray(corner, np.float32), size))
+    for x, y, _, yaw in corner_targets:
         signs = np.asarray([[1, 1], [1, -1], [-1, 1], [-1, -1]]) * np.asarray([0.06, 0.04])
         rotation = np.asarray([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
         box_corners = np.asarray([x, y]) + signs @ rotation.T
         assert np.min(np.linalg.norm(box_corners - marks_corner, axis=-1)) < 1e-6
-    marks = np.asarray(tasks.corner_marks(size))
     np.testing.assert_allclose(marks, [[0.0375, 0.0425, 0.0], [0.0625, 0.0175, 0.0]], atol=1e-7)
 
 
