@@ -9,6 +9,12 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
+
+from jarena.core.arena import ArenaSpec
+from jarena.core.spec import Box
+from jarena_agents import networks
+from jarena_agents.config import ConfigError
 
 
 def random_shift(key: jax.Array, images: jax.Array, pad: int = 4) -> jax.Array:
@@ -73,3 +79,22 @@ def random_rotate90(key: jax.Array, images: dict, points: jax.Array) -> tuple[di
 
     points = rotate_points(points, turns.reshape((size,) + (1,) * (points.ndim - 2)))
     return {k: turn(v) for k, v in images.items()}, points
+
+
+def check_rotate90(spec: ArenaSpec, agent: str) -> None:
+    """Raises a ``ConfigError`` naming ``agent`` unless ``augment: rotate90`` can turn this arena's samples: square
+    image observations and nothing else, and Box actions in [-1, 1] with an even number of values (image points)."""
+    images = networks.image_keys(spec)
+    action = spec.action
+    problems = []
+    if not images:
+        problems.append("the arena has no image observations")
+    elif any(spec.observation[k].shape[0] != spec.observation[k].shape[1] for k in images):
+        problems.append("its images are not square")
+    if networks.vector_size(spec, images):
+        problems.append("it observes more than images (a vector would not turn with them)")
+    if not (isinstance(action, Box) and action.shape and action.shape[-1] % 2 == 0
+            and np.all(np.asarray(action.low) == -1.0) and np.all(np.asarray(action.high) == 1.0)):
+        problems.append(f"its actions {action!r} are not image points (an even number of values in [-1, 1])")
+    if problems:
+        raise ConfigError(f"{agent}: augment 'rotate90' does not fit this arena: " + "; ".join(problems))

@@ -1,9 +1,24 @@
-"""Checks shared by the agents that train from a :class:`jarena.data.TrajectoryDataset`."""
+"""Checks shared by the agents that train from a :class:`jarena.data.TrajectoryDataset`.
+
+For those that read a dataset whole onto the device and draw from it inside their compiled updates (``bc``,
+``diffusion``, ``transporter``, offline ``planet``): :func:`to_device`; and :func:`read_steps` and
+:func:`sample_windows` (offline ``planet``).
+"""
 
 from __future__ import annotations
 
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
 from jarena.core.arena import Arena
 from jarena.data import DatasetError, TrajectoryDataset, configs_for
+from jarena.data.loader import draw_indices
+from jarena.data.schema import STEP_FIELDS
+
+PyTree = Any
 
 #: The dataset groups and the arena config each must equal.
 GROUPS = {"observation": "obs_config", "action": "act_config", "goal": "goal_config"}
@@ -26,3 +41,54 @@ def check_dataset(dataset: TrajectoryDataset, arena: Arena, agent: str,
     count = dataset.num_steps() if need == "steps" else dataset.num_trajectories()
     if count == 0:
         raise DatasetError(f"{agent}: the dataset at {dataset.path!r} has no {need}")
+
+
+def read_steps(path: str, arena: Arena, agent: str) -> dict[str, Any]:
+    """The whole dataset at ``path``, checked against ``arena`` (:func:`check_dataset`), as numpy arrays in its
+    stored layout, keyed as :class:`jarena.data.Loader` keys its batches (fields by output key).
+
+    Returns a dict: ``observation`` (dict of (sum T_i + N, ...): each trajectory's T_i + 1 observations end to
+    end), ``action`` (dict of (sum T_i, ...)), ``goal`` (dict of (N, ...)), ``reward`` float32, ``terminated`` and
+    ``truncated`` bool (sum T_i,), and ``lengths`` int32 (N,), the T_i.
+    """
+    with TrajectoryDataset(path, "r") as dataset:
+        check_dataset(dataset, arena, agent)
+        n, steps = dataset.num_trajectories(), dataset.num_steps()
+        rows = {"observation": steps + n, "action": steps, "goal": n}
+        out: dict[str, Any] = {group: {f.output_key: dataset.rows(f"{group}/{name}", 0, rows[group])
+                                       for name, f in getattr(dataset.schema, group).items()} for group in rows}
+        out.update({name: dataset.rows(f"step/{name}", 0, steps) for name in STEP_FIELDS})
+        out["lengths"] = dataset.lengths().astype(np.int32)
+    return out
+
+
+def to_device(host: PyTree) -> PyTree:
+    """``host`` (numpy leaves) as traced values fetched by a host callback, not embedded as constants: for a
+    ``jit``-ed ``init_training`` that puts a dataset in its train state."""
+    shapes = jax.tree_util.tree_map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype), host)
+    return jax.pure_callback(lambda: host, shapes)
+
+
+def sample_windows(data: dict, key: jax.Array, batch_size: int, length: int) -> dict[str, Any]:
+    """``batch_size`` windows of ``length`` consecutive steps, each inside one trajectory, drawn uniformly among all
+    such windows (:func:`jarena.data.loader.draw_indices`) from ``data`` laid out as :func:`read_steps` gives it
+    (on device; jittable).
+
+    Returns the batch of a :class:`jarena.data.Loader` in ``mode="window"`` drawn with the same key, leaves (S, L,
+    ...): ``observation`` and ``next_observation`` (dicts), ``action`` and ``goal`` (dicts; the goal repeated per
+    step), ``reward``, ``terminated``, ``truncated``, ``mask`` (all true), ``first`` / ``last`` (the step starts /
+    ends its trajectory), ``trajectory`` and ``step``.
+    """
+    data = jax.tree_util.tree_map(jnp.asarray, data)
+    lengths = data["lengths"]
+    rank, step, mask = draw_indices(key, lengths, "window", batch_size, length)
+    step_rows = (jnp.cumsum(lengths) - lengths)[rank] + step  # trajectory i's first step row, then its steps
+    observation_rows = step_rows + rank  # its observations start i rows later (one more per trajectory)
+    at = lambda rows: (lambda x: x[rows])
+    batch = {"observation": jax.tree_util.tree_map(at(observation_rows), data["observation"]),
+             "next_observation": jax.tree_util.tree_map(at(observation_rows + 1), data["observation"]),
+             "action": jax.tree_util.tree_map(at(step_rows), data["action"]),
+             "goal": jax.tree_util.tree_map(at(rank), data["goal"]),
+             **{name: data[name][step_rows] for name in STEP_FIELDS}}
+    batch.update(mask=mask, first=step == 0, last=step == lengths[rank] - 1, trajectory=rank, step=step)
+    return batch

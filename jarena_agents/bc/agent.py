@@ -77,7 +77,7 @@ from jarena_agents.config import (
     non_negative,
     positive,
 )
-from jarena_agents.datasets import check_dataset
+from jarena_agents.datasets import check_dataset, to_device
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
 
@@ -222,25 +222,6 @@ POLICIES = tuple(sorted({policy for policy, _ in HEADS}))
 AUGMENTATIONS = ("none", "rotate90")
 
 
-def check_rotate90(spec: ArenaSpec) -> None:
-    """Raises a ``ConfigError`` unless ``augment: rotate90`` can turn this arena's samples: square image
-    observations and nothing else, and Box actions in [-1, 1] with an even number of values (image points)."""
-    images = networks.image_keys(spec)
-    action = spec.action
-    problems = []
-    if not images:
-        problems.append("the arena has no image observations")
-    elif any(spec.observation[k].shape[0] != spec.observation[k].shape[1] for k in images):
-        problems.append("its images are not square")
-    if networks.vector_size(spec, images):
-        problems.append("it observes more than images (a vector would not turn with them)")
-    if not (isinstance(action, Box) and action.shape and action.shape[-1] % 2 == 0
-            and np.all(np.asarray(action.low) == -1.0) and np.all(np.asarray(action.high) == 1.0)):
-        problems.append(f"its actions {action!r} are not image points (an even number of values in [-1, 1])")
-    if problems:
-        raise ConfigError("bc: augment 'rotate90' does not fit this arena: " + "; ".join(problems))
-
-
 def head_for(policy: str, spec: Spec) -> Head:
     """The head of ``policy`` for actions of ``spec``; a clear error for unsupported pairs."""
     networks.check_supported(spec, "bc")
@@ -324,12 +305,6 @@ def read_dataset(path: str, arena: Arena, chunk: int) -> dict[str, Any]:
                 mean=flat.mean(0).astype(np.float32), var=np.maximum(flat.var(0), MIN_VARIANCE).astype(np.float32))
 
 
-def _to_device(host: dict[str, Any]) -> dict[str, Any]:
-    """``host`` (numpy) as traced values fetched by a host callback, not embedded as constants."""
-    shapes = jax.tree_util.tree_map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype), host)
-    return jax.pure_callback(lambda: host, shapes)
-
-
 def sample(data: dict, lengths: jax.Array, key: jax.Array, batch_size: int, chunk: int) -> tuple[jax.Array, dict]:
     """A minibatch drawn uniformly among the K-step windows of the trajectories.
 
@@ -402,9 +377,9 @@ def make_bc(config=None) -> TrainableAgent:
 
     def init_training(key, arena: Arena) -> BCTrainState:
         if cfg.augment == "rotate90":
-            check_rotate90(arena.spec)
+            augment.check_rotate90(arena.spec, "bc")
         host = read_dataset(cfg.dataset, arena, cfg.chunk)
-        device = _to_device(host)
+        device = to_device(host)
         key, init_key = jax.random.split(key)
         acting = init(init_key, arena.spec, 1)
         stats = normalizer.RunningStatistics(count=jnp.asarray(host["lengths"].sum() + host["lengths"].size,

@@ -57,6 +57,7 @@ from jarena_agents.config import (
     non_negative,
     positive,
 )
+from jarena_agents.datasets import to_device
 from jarena_agents.diffusion import data, networks, schedule
 from jarena_agents.diffusion.networks import ObservationEncoder, TemporalUnet, center_offsets, crop, random_offsets
 from jarena_agents.registry import register_agent
@@ -218,12 +219,6 @@ class DiffusionTrainState:
     update: jax.Array  # int32, updates done
 
 
-def _to_device(host: dict[str, Any]) -> dict[str, Any]:
-    """``host`` (numpy) as traced values fetched by a host callback, not embedded as constants."""
-    shapes = jax.tree_util.tree_map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype), host)
-    return jax.pure_callback(lambda: host, shapes)
-
-
 # ---------------------------------------------------------------------------------------------- the agent
 def make_diffusion(config=None) -> TrainableAgent:
     cfg = make_config(DiffusionConfig, config, agent="diffusion")
@@ -373,7 +368,7 @@ def make_diffusion(config=None) -> TrainableAgent:
         check_spec(cfg, spec)
         host = data.read_dataset(cfg.dataset, arena, shared_networks.image_keys(spec), cfg.horizon, cfg.obs_horizon,
                                  cfg.action_steps)
-        device = _to_device(host)
+        device = to_device(host)
         key, init_key = jax.random.split(key)
         params = init_params(init_key, spec)
         normalizer = data.Normalizer(action=device["action_limits"], vector=device["vector_limits"])

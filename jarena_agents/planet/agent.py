@@ -1,14 +1,22 @@
-"""``planet``: a world model learned online, and CEM planning in its latent space (Hafner et al. 2019, PlaNet).
+"""``planet``: a world model learned online or from a dataset, and CEM planning in its latent space (Hafner et al.
+2019, PlaNet).
 
-Each update collects ``rollout_length`` steps of the B arenas into a window buffer
-(:mod:`jarena_agents.world_model.online`), then takes ``gradient_steps`` world-model gradient steps
+Online (``dataset`` empty, the default), each update collects ``rollout_length`` steps of the B arenas into a
+window buffer (:mod:`jarena_agents.world_model.online`), then takes ``gradient_steps`` world-model gradient steps
 (``train_steps``, or as many as ``replay_ratio`` asks; :mod:`jarena_agents.world_model`) on sequences of
-``sequence_length`` transitions. Until ``learning_starts``
-environment steps, actions are uniform (the seed episodes); afterwards the agent acts as below, with Gaussian
-exploration noise.
+``sequence_length`` transitions. Until ``learning_starts`` environment steps, actions are uniform (the seed
+episodes); afterwards the agent acts as below, with Gaussian exploration noise.
 
-Acting: per arena, the belief is filtered with each observation and the previous action (restarted at a new
-episode), then CEM (:func:`jarena_agents.planners.cem.cem_improve`) plans ``horizon`` actions over
+Offline (``dataset`` set to the path of a :class:`~jarena.data.TrajectoryDataset`, e.g. one written by ``jarena
+collect``), the model learns from the dataset's trajectories alone, as PlaNet-ClothPick does on cloth
+(:mod:`jarena_agents.planet.offline`): no arena is stepped while training, each update is one gradient step on
+``batch_size`` windows of ``sequence_length`` transitions of one trajectory, and ``total_steps`` counts gradient
+updates (:class:`~jarena_agents.config.DatasetSchedule`); ``augment`` may turn the windows. The collection keys
+(``num_arenas``, ``rollout_length``, ``train_steps``, ``replay_ratio``, ``buffer_size``, ``learning_starts``) are
+not used.
+
+Acting (either way): per arena, the belief is filtered with each observation and the previous action (restarted at
+a new episode), then CEM (:func:`jarena_agents.planners.cem.cem_improve`) plans ``horizon`` actions over
 :func:`jarena_agents.world_model.model.latent_model` -- the same planner code that plans over an arena's own
 dynamics -- warm-started from the previous plan shifted by one step. Defaults: PlaNet's planner (horizon 12, 1000
 candidates, 100 elites, 10 iterations), exploration noise 0.3.
@@ -30,7 +38,8 @@ from jarena.core.types import ArenaState, Info
 from jarena.data.buffer import make_buffer
 from jarena.data.buffer_state import BufferState
 from jarena.data.experience import experience_spec
-from jarena_agents.config import at_least, in_unit_interval, make_config
+from jarena_agents.config import DatasetSchedule, at_least, in_unit_interval, make_config
+from jarena_agents.planet import offline
 from jarena_agents.planners.cem import CEMConfig, cem_improve
 from jarena_agents.planners.model import is_bounded_continuous
 from jarena_agents.planners.sampling import shift_plan
@@ -45,12 +54,31 @@ PyTree = Any
 
 @dataclasses.dataclass(frozen=True)
 class PlaNetConfig(online.OnlineConfig):
-    """:class:`~jarena_agents.world_model.online.OnlineConfig` (model, collection) plus the planner."""
+    """:class:`~jarena_agents.world_model.online.OnlineConfig` (model, collection) plus the planner, and the dataset
+    of offline training."""
 
+    # a TrajectoryDataset's path: set, the model learns from its trajectories alone (offline; total_steps then counts
+    # gradient updates); empty, online from the arenas
+    dataset: str = ""
+    augment: str = "none"  # offline: "rotate90" turns each window and its image-point actions by quarter turns
     horizon: int = at_least(1, default=12)  # H, plan length in agent steps, in the latent model (PlaNet's 12)
     samples: int = at_least(1, default=1000)  # plans per CEM iteration, the current mean among them (PlaNet's 1000)
     iterations: int = at_least(1, default=10)  # CEM iterations per act (PlaNet's 10)
     elite_fraction: float = in_unit_interval(0.1, open_low=True)  # share kept as elites, at least 1 (PlaNet's 100)
+
+    @property
+    def steps_per_update(self) -> int:
+        """Offline, 1 (an update is a gradient step, :class:`DatasetSchedule`); online, the arenas' steps per update."""
+        return DatasetSchedule.steps_per_update.fget(self) if self.dataset else super().steps_per_update
+
+    @property
+    def num_updates(self) -> int:
+        return DatasetSchedule.num_updates.fget(self) if self.dataset else super().num_updates
+
+    @property
+    def step_unit(self) -> str:
+        """What ``total_steps`` counts (the ``jarena train`` command prints it)."""
+        return DatasetSchedule.step_unit.fget(self) if self.dataset else "environment steps"
 
 
 @struct.dataclass
@@ -98,11 +126,13 @@ def check_action_spec(spec) -> None:
 
 def make_planet(config=None) -> TrainableAgent:
     cfg = make_config(PlaNetConfig, config, agent="planet")
-    cfg = online.check_online_config(cfg, "planet")
+    offline.check_augment(cfg.augment)
+    cfg = cfg if cfg.dataset else online.check_online_config(cfg, "planet")
     model_cfg = cfg.model_config()
     cem = CEMConfig(samples=cfg.samples, horizon=cfg.horizon, iterations=cfg.iterations,
                     elite_fraction=cfg.elite_fraction, noise=1.0)
-    buffer = make_buffer(cfg.num_arenas, cfg.buffer_size, cfg.batch_size, mode="window", length=cfg.sequence_length)
+    buffer = None if cfg.dataset else make_buffer(cfg.num_arenas, cfg.buffer_size, cfg.batch_size, mode="window",
+                                                  length=cfg.sequence_length)
     optimizer = wm.model_optimizer(model_cfg)
 
     def world_model(spec: ArenaSpec) -> wm.WorldModel:
@@ -151,8 +181,9 @@ def make_planet(config=None) -> TrainableAgent:
         action, memory = plan_actions(state.spec, state.params, state.memory, info, key, noise)
         return action, state.replace(memory=memory)
 
-    def policy(train_state: PlaNetTrainState, spec: ArenaSpec, deterministic: bool = True) -> PlaNetState:
-        """The acting state of a trained agent; its memory is allocated for the runner's batch."""
+    def policy(train_state, spec: ArenaSpec, deterministic: bool = True) -> PlaNetState:
+        """The acting state of a trained agent (online or offline); its memory is allocated for the runner's
+        batch."""
         return PlaNetState(params=train_state.params, memory=None, spec=spec, deterministic=deterministic)
 
     def init_training(key, arena: Arena) -> PlaNetTrainState:
@@ -190,6 +221,19 @@ def make_planet(config=None) -> TrainableAgent:
     def train(train_state: PlaNetTrainState, arena: Arena, num_updates: int):
         """Runs ``num_updates`` updates (static) in one ``lax.scan``; metrics have a leading update axis."""
         return jax.lax.scan(lambda ts, _: one_update(arena, ts), train_state, None, length=num_updates)
+
+    def init_offline_training(key, arena: Arena) -> offline.OfflineTrainState:
+        return offline.init_training(cfg, world_model(arena.spec), optimizer, key, arena)
+
+    def train_offline(train_state: offline.OfflineTrainState, arena: Arena, num_updates: int):
+        """Runs ``num_updates`` gradient steps (static) on the dataset in one ``lax.scan``; the arena is not
+        stepped (its spec shapes the model); metrics have a leading update axis."""
+        model = world_model(arena.spec)
+        return jax.lax.scan(lambda ts, _: offline.update(cfg, model, optimizer, ts), train_state, None,
+                            length=num_updates)
+
+    if cfg.dataset:
+        init_training, train = init_offline_training, train_offline
 
     agent = Agent(name="planet", init=init, act=act, reset=reset, batch_state=batch_state,
                   config=dataclasses.asdict(cfg))

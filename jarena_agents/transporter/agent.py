@@ -42,6 +42,7 @@ from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.spec import Box
 from jarena.core.types import Info
 from jarena_agents.config import ConfigError, DatasetSchedule, at_least, make_config, positive
+from jarena_agents.datasets import to_device
 from jarena_agents.networks import init_params
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
@@ -135,12 +136,6 @@ class TransporterTrainState:
     data: PyTree
     key: jax.Array
     update: jax.Array  # int32, updates done
-
-
-def _to_device(host: dict[str, Any]) -> dict[str, Any]:
-    """``host`` (numpy) as traced values fetched by a host callback, not embedded as constants."""
-    shapes = jax.tree_util.tree_map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype), host)
-    return jax.pure_callback(lambda: host, shapes)
 
 
 def labels(action: jax.Array, shape: tuple[int, int], rotations: int) -> tuple[jax.Array, jax.Array, jax.Array]:
@@ -274,7 +269,7 @@ def make_transporter(config=None) -> TrainableAgent:
 
     def init_training(key, arena: Arena) -> TransporterTrainState:
         check_spec(arena.spec)
-        return model.start(key, _to_device(data.read_dataset(cfg.dataset, arena, (COLOR_KEY, HEIGHT_KEY))))
+        return model.start(key, to_device(data.read_dataset(cfg.dataset, arena, (COLOR_KEY, HEIGHT_KEY))))
 
     def policy(train_state: TransporterTrainState, spec: ArenaSpec, deterministic: bool = True) -> TransporterState:
         """The acting state of a trained agent."""

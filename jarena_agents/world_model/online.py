@@ -153,12 +153,18 @@ def episode_metrics(record: dict, running_return: jax.Array) -> dict:
 def model_step(model: wm.WorldModel, optimizer, buffer, buffer_state, params: dict, opt_state, key: jax.Array):
     """One world-model gradient step on a window batch: ``(params, opt_state, metrics, posterior latents (S, L+1))``."""
     sample_key, loss_key = jax.random.split(key)
+    seq = wm.sequences_from_windows(model.spec, buffer.sample(buffer_state, sample_key).experience)
+    return sequence_step(model, optimizer, params, opt_state, seq, loss_key)
+
+
+def sequence_step(model: wm.WorldModel, optimizer, params: dict, opt_state, seq: wm.Sequences, key: jax.Array):
+    """One world-model gradient step on ``seq`` (S, L+1), from the buffer or from a dataset (offline ``planet``):
+    ``(params, opt_state, metrics, posterior latents (S, L+1))``."""
     # data parallel over the devices of a mesh (jarena.distributed): each device takes its share of the sequences,
     # the model stays whole on each, and XLA all-reduces the gradients
     params, opt_state = distributed.replicate((params, opt_state))
-    seq = distributed.split_batch(wm.sequences_from_windows(model.spec,
-                                                            buffer.sample(buffer_state, sample_key).experience))
-    params, opt_state, metrics, latents = wm.gradient_step(model, optimizer, params, opt_state, seq, loss_key)
+    seq = distributed.split_batch(seq)
+    params, opt_state, metrics, latents = wm.gradient_step(model, optimizer, params, opt_state, seq, key)
     params, opt_state = distributed.replicate((params, opt_state))
     return params, opt_state, {k: metrics[k] for k in MODEL_METRICS}, latents
 

@@ -106,4 +106,4 @@ def test_rotate90_needs_image_point_actions_and_images_only(tmp_path):
         jarena_agents.build_agent("bc", {"cnn_output": "keypoints"})
     with_depth = jarena.build_arena("cloth|particles:8,resolution:16,horizon:2")
     with pytest.raises(ConfigError, match="more than images"):
-        jarena_agents.bc.agent.check_rotate90(with_depth.spec)
+        jarena_agents.augment.check_rotate90(with_depth.spec, "bc")
