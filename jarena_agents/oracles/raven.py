@@ -10,9 +10,10 @@ Each action, from the privileged state (object poses, the goal's current stage, 
    composed with the pick point's offset in the object's frame, turned by the target's heading less the
    object's (the cup picks with heading 0).
 
-With nothing left to place it does nothing (the no-op: a pick and place on the empty table's corner). Its
-randomness (the pick pixel) comes from the key and the episode id, so an episode gets the same actions in any
-batch.
+A goal scored by a zone (palletizing) keeps Ravens' targets for its objects, each box's place in the stack, so the
+oracle puts each box that comes in at its place. With nothing left to place it does nothing (the no-op: a pick and
+place on the empty table's corner). Its randomness (the pick pixel) comes from the key and the episode id, so an
+episode gets the same actions in any batch.
 """
 
 from __future__ import annotations
@@ -44,12 +45,14 @@ def unmatched(planar: jax.Array, goal: Goal, pos_eps: jax.Array, rot_eps: jax.Ar
     distance = jnp.linalg.norm(mine[:, None, :2] - goal.targets[None, :, :2], axis=-1)
     heading = heading_error(mine[:, None, 3], goal.targets[None, :, 3], goal.symmetry[:, None])
     hits = (distance < pos_eps) & (heading < rot_eps)
-    left = allowed
-    for i in range(allowed.shape[0]):
-        for j in range(allowed.shape[1]):
-            take = left[i, j] & hits[i, j]
-            left = jnp.where(take, left.at[i, :].set(False).at[:, j].set(False), left)
-    return left
+    targets = allowed.shape[1]
+
+    def set_aside(k, left):  # pair k: object k // targets, target k % targets, in Ravens' order
+        i, j = k // targets, k % targets
+        take = left[i, j] & hits[i, j]
+        return jnp.where(take, left.at[i, :].set(False).at[:, j].set(False), left)
+
+    return jax.lax.fori_loop(0, allowed.size, set_aside, allowed)
 
 
 def choose(planar: jax.Array, goal: Goal, objects_seen: jax.Array, pos_eps: jax.Array, rot_eps: jax.Array,

@@ -5,7 +5,7 @@ Builder ``raven``::
     raven|task:block-insertion
 
 - ``task``: a Ravens task (:data:`.tasks.TASKS`): ``block-insertion``, ``place-red-in-green``,
-  ``align-box-corner``, ``stack-block-pyramid``, ``towers-of-hanoi``.
+  ``align-box-corner``, ``stack-block-pyramid``, ``towers-of-hanoi``, ``palletizing-boxes``.
 - observations (:mod:`.heightmap`): Ravens' top-down orthographic heightmap of the workspace (x in [0.25, 0.75] m,
   y in [-0.5, 0.5] m, 3.125 mm per pixel): ``rgb`` uint8 (320, 160, 3) and ``height`` float32 (320, 160) metres.
 - actions (:mod:`.primitive`): float32 (5,) ``(pick_row, pick_col, place_row, place_col, place_yaw)``, one
@@ -14,8 +14,9 @@ Builder ``raven``::
   ``timestep`` (seconds, default 0.005), ``substeps`` physics steps per control step of the cup (4), ``settle``
   control steps after each place (8) and the constraint solver's ``iterations`` (10). Fewer iterations or
   coarser steps throw blocks dropped on the fixture's 2 mm walls (see ``docs/arenas/raven.md``).
-- scoring (:mod:`.scoring`): Ravens' pose matching in stages with partial credit; an episode's rewards add up to
-  at most 1, success when they pass 0.99; ``horizon`` actions per episode (Ravens' ``max_steps`` by default).
+- scoring (:mod:`.scoring`): Ravens' pose matching (or zone coverage) in stages with partial credit; an episode's
+  rewards add up to at most 1, success when they pass 0.99; ``horizon`` actions per episode (Ravens' ``max_steps``
+  by default).
 - oracles read ``arena.privileged(state)``: the physics (``.physics``, :class:`.physics.RavenPhysics`, with its
   scene) and the goal (:func:`.scoring.goal_state` of ``.task``).
 """
@@ -101,9 +102,9 @@ def build(task: str = "block-insertion", timestep: float = 0.005, substeps: int 
         raise ArenaStringError(str(e)) from None
     spec = TASKS[task]()
     scene = build_scene(spec.items, PhysicsOptions(timestep=float(timestep), iterations=iterations,
-                                                   ls_iterations=iterations))
+                                                   ls_iterations=iterations), spec.pairs)
     dynamics = raven_dynamics(scene, substeps, render=_renderer(scene))
-    primitive = pick_and_place(settle)
+    primitive = pick_and_place(settle, spec.after_action)
     tool = chain(make_tool(action), primitive) if action is not None else primitive
     tasks = [pose_goal(spec.goal, spec.name, spec.pos_eps, spec.initialize),
              time_limit((horizon or spec.max_steps) * tool.substeps)]

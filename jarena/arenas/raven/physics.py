@@ -23,7 +23,7 @@ switched per arena does the same job.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
@@ -65,6 +65,8 @@ class RavenPhysics:
         frame (metres) and colours in [0, 1] (``scene.geom`` order): the scene's, or the episode's where a task
         changes them (a box of random size); sizes and positions go into the model at every step.
       scene: the scene (static).
+      queue: what a task keeps of the episode beside the physics (palletizing's boxes still to come,
+        :class:`.tasks.SpawnQueue`); ``()`` for most tasks.
     """
 
     data: mjx.Data
@@ -75,6 +77,7 @@ class RavenPhysics:
     geom_pos: jax.Array
     geom_rgb: jax.Array
     scene: Scene = struct.field(pytree_node=False)
+    queue: Any = ()
 
 
 def object_poses(physics: RavenPhysics) -> tuple[jax.Array, jax.Array]:
@@ -109,6 +112,20 @@ def place_objects(physics: RavenPhysics, pos: jax.Array, quat: jax.Array) -> Rav
             qpos = qpos.at[start:start + 7].set(jnp.concatenate([pos[i], quat[i]]))
             qvel = qvel.at[dof:dof + 6].set(0.0)
     return physics.replace(data=data.replace(qpos=qpos, qvel=qvel, mocap_pos=mocap_pos, mocap_quat=mocap_quat))
+
+
+def place_movable(physics: RavenPhysics, slot: jax.Array, pos: jax.Array, quat: jax.Array,
+                  where: jax.Array = True) -> RavenPhysics:
+    """``physics`` with the movable object ``slot`` (int32 (), its index in ``scene.movable``; may be traced) at
+    rest at ``pos`` (3,), ``quat`` (4,) where ``where`` holds; the others as they are. Kinematics are left to the
+    next physics step."""
+    scene, data = physics.scene, physics.data
+    start, dof = jnp.asarray(scene.qpos_address)[slot], jnp.asarray(scene.qvel_address)[slot]
+    pose = jnp.concatenate([jnp.asarray(pos, data.qpos.dtype), jnp.asarray(quat, data.qpos.dtype)])
+    qpos = jnp.where(where, jax.lax.dynamic_update_slice(data.qpos, pose, (start,)), data.qpos)
+    qvel = jnp.where(where, jax.lax.dynamic_update_slice(data.qvel, jnp.zeros(6, data.qvel.dtype), (dof,)),
+                     data.qvel)
+    return physics.replace(data=data.replace(qpos=qpos, qvel=qvel))
 
 
 def cup_pose(physics: RavenPhysics) -> tuple[jax.Array, jax.Array]:

@@ -17,10 +17,13 @@ One action runs ``3 + settle`` control steps of the cup (:mod:`.physics`) in one
    every object is still).
 
 If nothing was grasped, step 3 only lowers the empty cup. An action's reward is the sum of its control steps'
-rewards; its termination, success, goal and metrics are the task's after its last control step.
+rewards; its termination, success, goal and metrics are the task's after its last control step. A task may change
+the scene once per action, before its last control step (palletizing brings the next box in).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
@@ -28,8 +31,10 @@ import numpy as np
 from flax import struct
 
 from jarena.arenas.raven import heightmap
+from jarena.arenas.raven.physics import RavenPhysics
 from jarena.core.spec import Box, Spec
 from jarena.core.tool import ActionTool
+from jarena.core.tree import tree_where
 
 HEIGHT = 0.32
 """Ravens' lift height above the pick and place points, metres."""
@@ -68,9 +73,26 @@ def motion(action: jax.Array, params: PickPlaceParams, settle: int) -> jax.Array
     return jnp.stack(steps)
 
 
-def pick_and_place(settle: int = 8) -> ActionTool:
+def _on_physics(carry, after_action: Callable) -> tuple[object, jax.Array]:
+    """``after_action`` applied to the one :class:`.physics.RavenPhysics` in an arena's carry (opaque to other
+    tools; the Raven primitive is the innermost), and what it says of the episode's end."""
+    leaves, tree = jax.tree_util.tree_flatten(carry, is_leaf=lambda x: isinstance(x, RavenPhysics))
+    found = [i for i, leaf in enumerate(leaves) if isinstance(leaf, RavenPhysics)]
+    if len(found) != 1:
+        raise TypeError(f"pick_and_place's after_action needs the arena's RavenPhysics in its carry, found "
+                        f"{len(found)}")
+    leaves[found[0]], over = after_action(leaves[found[0]])
+    return jax.tree_util.tree_unflatten(tree, leaves), over
+
+
+def pick_and_place(settle: int = 8, after_action: Callable | None = None) -> ActionTool:
     """Ravens' pick-and-place primitive in heightmap pixels (see the module docstring); ``settle`` control steps
-    after the place (the first also lifts the cup away)."""
+    after the place (the first also lifts the cup away).
+
+    ``after_action``: ``(physics) -> (physics, over)``, a task's change to the scene between actions (a box
+    coming in), applied once per action before its last control step, whose physics step then takes it in
+    (kinematics, contacts); ``over`` (bool ()) ends the episode (the action's outcome is ``terminated``).
+    """
     settle = int(settle)
     if settle < 1:
         raise ValueError(f"pick_and_place needs at least 1 settle step, got {settle}")
@@ -87,9 +109,22 @@ def pick_and_place(settle: int = 8) -> ActionTool:
 
     def step(state, action, carry, inner, params, inner_spec):
         controls = motion(action, params, settle)
-        carry, outcomes = jax.lax.scan(inner, carry, controls)
+        if after_action is None:
+            carry, outcomes = jax.lax.scan(inner, carry, controls)
+            last = jax.tree_util.tree_map(lambda x: x[-1], outcomes)
+            return carry, last.replace(reward=jnp.sum(outcomes.reward)), state
+
+        # one loop body, the change selected at the last step: the physics step is compiled once
+        def control_step(carry, xs):
+            control, is_last = xs
+            changed, over = _on_physics(carry, after_action)
+            carry, outcome = inner(tree_where(is_last, changed, carry), control)
+            return carry, (outcome, over & is_last)
+
+        is_last = jnp.arange(controls.shape[0]) == controls.shape[0] - 1
+        carry, (outcomes, over) = jax.lax.scan(control_step, carry, (controls, is_last))
         last = jax.tree_util.tree_map(lambda x: x[-1], outcomes)
-        return carry, last.replace(reward=jnp.sum(outcomes.reward)), state
+        return carry, last.replace(reward=jnp.sum(outcomes.reward), terminated=last.terminated | over[-1]), state
 
     return ActionTool(step=step, spec=spec, no_op=no_op, substeps=3 + settle,
                       default_params=lambda: jax.tree_util.tree_map(jnp.float32, PickPlaceParams()),

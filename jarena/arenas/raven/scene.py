@@ -9,8 +9,10 @@ the object (:mod:`.physics`).
 Contacts are kept few: by default movable objects collide with the table, the fixed objects and each other
 (``contype`` 1, ``conaffinity`` 1); the table and fixed objects (``contype`` 0) never collide among themselves; the
 cup collides with nothing (its touch is found by a ray, :mod:`.geometry`). An :class:`Item` may narrow its
-collisions further (its ``contype`` and ``conaffinity`` bits), and a :class:`Box` that is not ``solid`` is only
-seen (by the heightmap and the cup's ray), never touched: a part's look and its collision can be separate boxes.
+collisions further (its ``contype`` and ``conaffinity`` bits), a scene may list explicit contact pairs of objects
+(MuJoCo's ``<pair>``: the only ones between objects whose bits rule each other out), and a :class:`Box` that is
+not ``solid`` is only seen (by the heightmap and the cup's ray), never touched: a part's look and its collision can
+be separate boxes.
 """
 
 from __future__ import annotations
@@ -168,6 +170,18 @@ BOX = Shape("box", (Box((0.15, 0.15, 0.06)),), extent=(0.15, 0.15, 0.06), mass=0
 """Ravens' ``box/box-template.urdf``: a box of the episode's size (at most 15 x 15 x 6 cm), 0.1 kg."""
 
 
+def box(size: tuple[float, float, float]) -> Shape:
+    """Ravens' ``box/box-template.urdf`` filled with a fixed ``size`` (full extents, metres): 0.1 kg, brown."""
+    return Shape("box", (Box(tuple(float(s) for s in size)),), extent=tuple(float(s) for s in size), mass=0.1,
+                 friction=1.0, rgb=rgb("brown"))
+
+
+PALLET = Shape("pallet", (Box((0.3, 0.25, 0.0375)),), extent=(0.3, 0.25, 0.0375), fixed=True, friction=1.0,
+               rgb=(0.8706, 0.7216, 0.5294))
+"""Ravens' ``pallet/pallet.urdf`` (a mesh of slats, 0.3 x 0.25 x 0.0375 m about its origin): a solid slab of its
+size, light wood."""
+
+
 
 @dataclasses.dataclass(frozen=True)
 class Item:
@@ -208,35 +222,51 @@ class PhysicsOptions:
     ls_iterations: int = 10
 
 
-def _box_geom(box: Box, colour, collision: tuple[int, int], mass: float | None, friction: float) -> str:
+def _box_geom(box: Box, colour, collision: tuple[int, int], mass: float | None, friction: float,
+              name: str | None = None) -> str:
     half = " ".join(f"{s / 2:.6g}" for s in box.size)
     pos = " ".join(f"{p:.6g}" for p in box.pos)
     quat = f"{np.cos(box.yaw / 2):.9g} 0 0 {np.sin(box.yaw / 2):.9g}"
     colour = colour if box.rgb is None else box.rgb
     contype, conaffinity = collision if box.solid else (0, 0)
     mass_attr = f' mass="{mass:.6g}"' if mass is not None else ""
-    return (f'<geom type="box" size="{half}" pos="{pos}" quat="{quat}" '
+    name_attr = f'name="{name}" ' if name is not None else ""
+    return (f'<geom {name_attr}type="box" size="{half}" pos="{pos}" quat="{quat}" '
             f'rgba="{colour[0]:.4g} {colour[1]:.4g} {colour[2]:.4g} 1" contype="{contype}" '
             f'conaffinity="{conaffinity}" friction="{friction:.4g} 0.005 0.0001"{mass_attr}/>')
 
 
-def mjcf(items: tuple[Item, ...], options: PhysicsOptions) -> str:
-    """The MJCF of a scene with ``items`` (movable ones first in the model's body order)."""
+def _geom_name(item: Item, k: int) -> str:
+    return f"{item.name}_box{k}"
+
+
+def mjcf(items: tuple[Item, ...], options: PhysicsOptions, pairs: tuple[tuple[str, str], ...] = ()) -> str:
+    """The MJCF of a scene with ``items`` (movable ones first in the model's body order) and explicit contact
+    ``pairs`` of items (each solid box of one with each of the other, whatever their collision bits)."""
+    paired = {name for pair in pairs for name in pair}
     bodies, welds = [], []
     for i, item in enumerate(items):
         shape = item.shape
+        names = [_geom_name(item, k) if item.name in paired else None for k in range(len(shape.boxes))]
         # park every object apart, off the table's workspace, until an episode places it
         parked = f"{2.0 + 0.3 * i:.3f} 2.0 {shape.extent[2] / 2:.4f}"
         if shape.fixed:
-            geoms = "".join(_box_geom(b, item.colour, item.collision, None, shape.friction) for b in shape.boxes)
+            geoms = "".join(_box_geom(b, item.colour, item.collision, None, shape.friction, n)
+                            for b, n in zip(shape.boxes, names, strict=True))
             bodies.append(f'<body name="{item.name}" mocap="true" pos="{parked}">{geoms}</body>')
         else:
             volume = [float(np.prod(b.size)) for b in shape.boxes]
-            geoms = "".join(_box_geom(b, item.colour, item.collision, shape.mass * v / sum(volume), shape.friction)
-                            for b, v in zip(shape.boxes, volume, strict=True))
+            geoms = "".join(_box_geom(b, item.colour, item.collision, shape.mass * v / sum(volume), shape.friction,
+                                      n) for b, v, n in zip(shape.boxes, volume, names, strict=True))
             bodies.append(f'<body name="{item.name}" pos="{parked}"><freejoint name="{item.name}"/>{geoms}</body>')
             welds.append(f'<weld name="grasp_{item.name}" body1="cup" body2="{item.name}" active="false"/>')
     table = " ".join(f"{c:.4g}" for c in TABLE_RGB)
+    by_name = {item.name: item for item in items}
+    contacts = "".join(
+        f'<pair geom1="{_geom_name(by_name[a], j)}" geom2="{_geom_name(by_name[b], k)}"/>'
+        for a, b in pairs for j, box_a in enumerate(by_name[a].shape.boxes) if box_a.solid
+        for k, box_b in enumerate(by_name[b].shape.boxes) if box_b.solid)
+    contact = f"\n  <contact>{contacts}</contact>" if pairs else ""
     return f"""<mujoco model="raven">
   <option timestep="{options.timestep}" iterations="{options.iterations}" ls_iterations="{options.ls_iterations}"
           cone="pyramidal"/>
@@ -249,7 +279,7 @@ def mjcf(items: tuple[Item, ...], options: PhysicsOptions) -> str:
             contype="0" conaffinity="0" mass="0.1"/>
     </body>
   </worldbody>
-  <equality>{"".join(welds)}</equality>
+  <equality>{"".join(welds)}</equality>{contact}
 </mujoco>"""
 
 
@@ -303,17 +333,22 @@ class Scene:
         return self.names.index(name)
 
 
-def build_scene(items: tuple[Item, ...], options: PhysicsOptions = PhysicsOptions()) -> Scene:
-    """The :class:`Scene` of ``items`` (movable objects first), its model compiled from :func:`mjcf`."""
+def build_scene(items: tuple[Item, ...], options: PhysicsOptions = PhysicsOptions(),
+                pairs: tuple[tuple[str, str], ...] = ()) -> Scene:
+    """The :class:`Scene` of ``items`` (movable objects first), its model compiled from :func:`mjcf` with the
+    explicit contact ``pairs`` (names of items)."""
     names = [item.name for item in items]
     if len(set(names)) != len(names):
         raise ValueError(f"object names must be unique, got {names}")
+    unknown = sorted({n for pair in pairs for n in pair} - set(names))
+    if unknown:
+        raise ValueError(f"contact pairs name objects {unknown} that the scene does not have; it has {names}")
     kinds = [item.shape.fixed for item in items]
     if kinds != sorted(kinds):
         raise ValueError(f"list the movable objects before the fixed ones, got {names}")
     import mujoco  # imported when a scene is built, so that importing jarena does not load MuJoCo
 
-    model = mujoco.MjModel.from_xml_string(mjcf(tuple(items), options))
+    model = mujoco.MjModel.from_xml_string(mjcf(tuple(items), options, tuple(pairs)))
     body = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in names]
     movable = np.array([i for i, item in enumerate(items) if not item.shape.fixed], np.int32)
     joints = [model.body_jntadr[body[i]] for i in movable]

@@ -6,7 +6,9 @@ symmetry of 0 ignores the heading (Ravens' ``is_match``). A goal is a list of en
 may go to) in stages of given weights that add up to 1 (Ravens' list of goals: one stage for most tasks, the three
 rows of a pyramid, the seven moves of the towers of Hanoi, where one object comes back in several stages). Only
 the current stage is scored: its credit is its weight times the fraction of its entries that match one of their
-targets (each entry counts once; as in Ravens, two objects on one target both count). A stage is complete, its
+targets (each entry counts once; as in Ravens, two objects on one target both count), or, for a goal with a
+:class:`Zone` (Ravens' ``zone`` metric: palletizing), the share of its entries' points that lie in the zone's
+rectangle, each object's points a 2 cm grid over its box (Ravens' ``get_object_points``). A stage is complete, its
 weight banked for good and the next one scored, when its credit is within 0.01 of its weight with the objects at
 rest (:func:`.physics.at_rest`: Ravens scores once the simulation is still). The score is the banked weights
 plus the current stage's credit, and the reward is its change since the last step, so an episode's rewards add
@@ -30,6 +32,26 @@ from jarena.arenas.raven.physics import RavenPhysics, at_rest, object_poses
 from jarena.core.task import Task
 from jarena.core.tree import as_float32
 
+ZONE_TOP = 0.3
+"""Points higher than this above a zone's origin, metres, are not in it (Ravens' workspace top)."""
+
+
+@struct.dataclass
+class Zone:
+    """A zone of the table that objects must cover (Ravens' ``zone`` metric).
+
+    Attributes:
+      pose: float32 (4,): the zone's ``(x, y, z, yaw)``.
+      size: float32 (2,): its extents along its x and y axes, metres.
+      points: float32 (O, P, 3): each goal entry's object's points, in the object's frame (Ravens' grid of 2 cm).
+      valid: bool (O, P): which of them are points (objects with fewer are padded).
+    """
+
+    pose: jax.Array
+    size: jax.Array
+    points: jax.Array
+    valid: jax.Array
+
 
 @struct.dataclass
 class Goal:
@@ -44,6 +66,8 @@ class Goal:
       matches: bool (O, T): which targets each entry may go to.
       stage: int32 (O,): each entry's stage (``None``: one stage).
       weights: float32 (S,): each stage's share of the score, adding up to 1 (``None``: one stage, ``[1]``).
+      zone: a :class:`Zone` scores the goal by the share of its present entries' points in the zone instead of
+        by poses (one stage; the targets remain where the oracle puts the objects); ``None``: by poses.
     """
 
     objects: jax.Array
@@ -54,6 +78,7 @@ class Goal:
     matches: jax.Array
     stage: jax.Array | None = None
     weights: jax.Array | None = None
+    zone: Zone | None = None
 
 
 @struct.dataclass
@@ -115,22 +140,47 @@ def current_goal(goal: Goal, stage: jax.Array) -> Goal:
     return goal.replace(present=goal.present & (entry_stage == stage))
 
 
-def stage_credit(planar: jax.Array, goal: Goal, stage: jax.Array, params: PoseGoalParams) -> jax.Array:
+def in_zone(zone: Zone, pos: jax.Array, quat: jax.Array) -> jax.Array:
+    """bool (O, P): which of the zone's points lie in it, with each entry's object at ``pos`` (O, 3), ``quat``
+    (O, 4): inside the zone's rectangle (open bounds, as Ravens') and under :data:`ZONE_TOP` above its origin."""
+    world = pos[:, None, :] + poses.rotate(quat[:, None, :], zone.points)
+    local = poses.rotate(poses.yaw_quat(-zone.pose[3]), world - zone.pose[:3])
+    half = zone.size / 2
+    return (jnp.all(jnp.abs(local[..., :2]) < half, axis=-1) & (local[..., 2] < ZONE_TOP)) & zone.valid
+
+
+def zone_fraction(planar: jax.Array, goal: Goal, quat: jax.Array | None = None) -> jax.Array:
+    """float32 (): the share of the present entries' points that lie in the goal's zone (Ravens' zone metric: the
+    points of all its objects counted together). ``planar`` (N, 4) every object's ``(x, y, z, yaw)``; ``quat``
+    (N, 4) their orientations (``None``: upright, turned by their yaw)."""
+    zone = goal.zone
+    orientation = poses.yaw_quat(planar[:, 3]) if quat is None else quat
+    inside = in_zone(zone, planar[goal.objects, :3], orientation[goal.objects])
+    counted = zone.valid & goal.present[:, None]
+    return jnp.sum(inside & counted) / jnp.maximum(jnp.sum(counted), 1)
+
+
+def stage_credit(planar: jax.Array, goal: Goal, stage: jax.Array, params: PoseGoalParams,
+                 quat: jax.Array | None = None) -> jax.Array:
     """float32 (): the credit of ``stage``: its weight times the fraction of its present entries that match an
-    allowed target (0 past the last stage)."""
+    allowed target, or for a goal with a zone the share of their points in it (0 past the last stage); ``quat``
+    (N, 4) the objects' orientations for a zone (``None``: upright at their yaw)."""
     _, weights = stages(goal)
     mine = current_goal(goal, stage)
-    placed = jnp.any(matched(planar, mine, params), axis=-1)
-    fraction = jnp.sum(placed) / jnp.maximum(jnp.sum(mine.present), 1)
+    if goal.zone is not None:
+        fraction = zone_fraction(planar, mine, quat)
+    else:
+        placed = jnp.any(matched(planar, mine, params), axis=-1)
+        fraction = jnp.sum(placed) / jnp.maximum(jnp.sum(mine.present), 1)
     return jnp.where(stage < weights.shape[0], weights[jnp.minimum(stage, weights.shape[0] - 1)] * fraction, 0.0)
 
 
 def score(planar: jax.Array, goal: Goal, params: PoseGoalParams, stage: jax.Array = 0,
-          progress: jax.Array = 0.0) -> jax.Array:
+          progress: jax.Array = 0.0, quat: jax.Array | None = None) -> jax.Array:
     """float32 (): the score with ``stage`` current and ``progress`` banked: ``progress`` plus the stage's credit
     (for a goal of one stage, from its start: the fraction of the present objects that match an allowed
-    target)."""
-    return progress + stage_credit(planar, goal, jnp.asarray(stage, jnp.int32), params)
+    target, or the share of their points in the goal's zone; ``quat`` as for :func:`stage_credit`)."""
+    return progress + stage_credit(planar, goal, jnp.asarray(stage, jnp.int32), params, quat)
 
 
 def errors(planar: jax.Array, goal: Goal) -> dict[str, jax.Array]:
@@ -166,7 +216,8 @@ def pose_goal(goal_of: Callable[[RavenPhysics], Goal], name: str, pos_eps: float
 
     def measure(physics, state, params):
         planar = planar_poses(physics)
-        credit = stage_credit(planar, state.goal, state.stage, params)
+        quat = object_poses(physics)[1] if state.goal.zone is not None else None
+        credit = stage_credit(planar, state.goal, state.stage, params, quat)
         _, weights = stages(state.goal)
         scored = current_goal(state.goal, jnp.minimum(state.stage, weights.shape[0] - 1))
         return credit, planar, {**errors(planar, scored), "grasp_slip": physics.slip}

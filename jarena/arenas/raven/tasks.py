@@ -12,13 +12,14 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 import numpy as np
+from flax import struct
 
 from jarena.arenas.raven import layout, poses
 from jarena.arenas.raven import scene as shapes
 from jarena.arenas.raven.heightmap import BOUNDS
-from jarena.arenas.raven.physics import RavenPhysics, object_poses, place_objects
+from jarena.arenas.raven.physics import RavenPhysics, object_poses, place_movable, place_objects
 from jarena.arenas.raven.scene import BLOCK, Item, rgb
-from jarena.arenas.raven.scoring import Goal, planar_poses
+from jarena.arenas.raven.scoring import Goal, Zone, planar_poses
 
 
 @dataclasses.dataclass(frozen=True)
@@ -32,6 +33,10 @@ class RavenTask:
       pos_eps: metres within which an object matches its target (Ravens' ``pos_eps``).
       initialize: ``(key, physics) -> physics``: the episode's layout.
       goal: ``(physics) -> Goal`` at the episode's start.
+      after_action: ``(physics) -> (physics, over)`` once per pick-and-place, before its last control step (after
+        the place): what the task changes between actions (palletizing spawns the next box), and whether that
+        ends the episode (bool ()); ``None``: nothing.
+      pairs: explicit contact pairs of items (names), beside those their collision bits allow.
     """
 
     name: str
@@ -40,6 +45,8 @@ class RavenTask:
     pos_eps: float
     initialize: Callable[[jax.Array, RavenPhysics], RavenPhysics]
     goal: Callable[[RavenPhysics], Goal]
+    after_action: Callable[[RavenPhysics], tuple[RavenPhysics, jax.Array]] | None = None
+    pairs: tuple[tuple[str, str], ...] = ()
 
 
 def on_table(planar: jax.Array) -> jax.Array:
@@ -262,8 +269,162 @@ def towers_of_hanoi() -> RavenTask:
     return RavenTask("towers-of-hanoi", items, max_steps=14, pos_eps=0.01, initialize=initialize, goal=goal)
 
 
+PALLET_POSE = (0.5, 0.25, 0.02, 0.0)
+"""The pallet's (and its zone's) pose ``(x, y, z, yaw)``, metres and radians (Ravens')."""
+PALLET_ZONE = (0.3, 0.25)
+"""The zone's extents along the pallet's x and y, metres (Ravens' ``zone_size``, whose height it does not use)."""
+STACK_SIZE = (0.19, 0.19, 0.19)
+STACK_DIM = (2, 3, 3)
+STACK_MARGIN = 0.01
+"""The stack of boxes on the pallet (Ravens'): its extents (metres), boxes along x, y and z before the first
+layer's transposition, and the gap between neighbours (metres)."""
+SPAWN_XY = (0.5, -0.25)
+"""Where each box comes in, metres (Ravens' spawn point)."""
+POINT_SPACING = 0.02
+"""The spacing of a box's points for the zone metric, metres (Ravens' ``get_object_points``)."""
+
+
+def stack_places() -> tuple[np.ndarray, np.ndarray]:
+    """The stack's boxes in Ravens' order: ``(centres, sizes)``, float64 (18, 3) each, centres in the pallet's
+    frame, full extents, metres. Layer by layer from the bottom; each layer first transposes the grid and the box
+    (its x and y counts and extents swapped), then runs over y, then x."""
+    stack, margin = np.asarray(STACK_SIZE, np.float64), STACK_MARGIN
+    dim = np.asarray(STACK_DIM, np.int64)
+    size = (stack - (dim - 1) * margin) / dim
+    centres, sizes = [], []
+    for z in range(int(dim[2])):
+        dim[[0, 1]], size[[0, 1]] = dim[[1, 0]], size[[1, 0]]
+        for y in range(int(dim[1])):
+            for x in range(int(dim[0])):
+                centre = (np.asarray([x, y, z]) + 0.5) * size
+                centre += np.asarray([x * margin - stack[0] / 2, y * margin - stack[1] / 2, z * margin + 0.03])
+                centres.append(centre)
+                sizes.append(size.copy())
+    return np.asarray(centres), np.asarray(sizes)
+
+
+def box_points(size) -> np.ndarray:
+    """float32 (P, 3): Ravens' points of a box of full extents ``size`` (3,): a grid every :data:`POINT_SPACING`
+    from ``-size / 2`` on each axis, short of ``size / 2``."""
+    axes = [np.arange(-s / 2, s / 2, POINT_SPACING) for s in size]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3).astype(np.float32)
+
+
+@struct.dataclass
+class SpawnQueue:
+    """The boxes still to come in an episode of palletizing (``RavenPhysics.queue``).
+
+    Attributes:
+      order: int32 (K,): the boxes (scene indices) in the order they come in.
+      yaw: float32 (K,): the heading each comes in with, radians.
+      count: int32 (): how many have come in.
+    """
+
+    order: jax.Array
+    yaw: jax.Array
+    count: jax.Array
+
+
+def spawn_order(key: jax.Array, layers: int, per_layer: int) -> jax.Array:
+    """int32 (layers x per_layer,): the order boxes come in, the reverse of taking the full stack apart from the
+    top (Ravens' time-reversed depalletizing): layer by layer from the bottom, each layer's boxes (numbered
+    layer by layer) in a random order."""
+    keys = jax.random.split(key, layers)
+    return jnp.concatenate([jax.random.permutation(keys[z], per_layer) + z * per_layer
+                            for z in range(layers)]).astype(jnp.int32)
+
+
+def in_workspace(planar: jax.Array) -> jax.Array:
+    """bool (...): which boxes, of planar poses (..., 4), are in the workspace where boxes come in: y in [-0.5, 0]
+    metres (Ravens' test; boxes on the pallet's side have y > 0, parked ones y = 2)."""
+    return (planar[..., 1] >= BOUNDS[1][0]) & (planar[..., 1] <= 0.0)
+
+
+def palletizing_boxes() -> RavenTask:
+    """Ravens' ``palletizing-boxes``: stack 18 boxes on the pallet, one at a time, as they come in.
+
+    The stack (:func:`stack_places`) is 2 x 3 x 3 boxes of 5.7 x 9 x 5.7 cm, 1 cm apart, each layer turned a
+    quarter turn from the one below, 19 cm a side. An episode starts with the pallet in its fixed place and one
+    box in the workspace; the others are parked off the table, apart. Whenever the workspace is empty (every box
+    on the pallet side, y > 0, or parked; checked once per action, once the box is placed and the cup has risen:
+    :attr:`RavenTask.after_action`), the next box comes in at :data:`SPAWN_XY`, at rest on the table with a random
+    heading, in the reverse of an order that takes the full stack apart from the top (:func:`spawn_order`; the
+    order and headings are drawn at reset and kept in ``RavenPhysics.queue``). Boxes are brown of a random shade.
+    The goal is one zone (Ravens' ``zone`` metric): the share of the 18 boxes' points over the pallet's 30 x 25 cm
+    (1/18 a box); the targets where the oracle puts each box are its place in the stack (Ravens' targets, which
+    the score does not use). As in Ravens, the episode ends after the first action that follows the last box's
+    coming in; 30 actions.
+
+    Boxes collide with the table and the pallet, and through explicit pairs each with its neighbours in the stack:
+    the boxes of its layer next to its place (side by side or corner to corner, 1 cm apart) and those of the
+    layers above and below whose places overlap its own, seen from above (65 pairs of the 153); not with boxes
+    farther away in the stack.
+    """
+    centres, sizes = stack_places()
+    count, per_layer = len(centres), STACK_DIM[0] * STACK_DIM[1]
+    layers = count // per_layer
+    layer = np.arange(count) // per_layer
+    items = tuple(Item(f"box{i}", shapes.box(tuple(sizes[i])), contype=1, conaffinity=0) for i in range(count)) + (
+        Item("pallet", shapes.PALLET),)
+    pallet = np.asarray(PALLET_POSE, np.float32)
+    cos, sin = np.cos(pallet[3]), np.sin(pallet[3])
+    targets = np.concatenate([pallet[:2] + centres[:, :2] @ np.asarray([[cos, sin], [-sin, cos]]),
+                              pallet[2] + centres[:, 2:], np.full((count, 1), pallet[3])], -1).astype(np.float32)
+    # pairs: a box and the one above it where their places overlap seen from above, and neighbours in a layer
+    # (side by side or corner to corner, their places 1 cm apart)
+    gap = np.abs(centres[:, None, :2] - centres[None, :, :2]) - (sizes[:, None, :2] + sizes[None, :, :2]) / 2
+    above = np.all(gap < 0, -1) & (layer[None, :] == layer[:, None] + 1)
+    beside = np.all(gap < 2 * STACK_MARGIN, -1) & (layer[None, :] == layer[:, None])
+    beside &= np.arange(count)[None, :] > np.arange(count)[:, None]
+    pairs = tuple((f"box{i}", f"box{j}") for i, j in zip(*np.nonzero(above | beside), strict=True))
+    points = [box_points(size) for size in sizes]
+    most = max(len(p) for p in points)
+    valid = np.asarray([np.arange(most) < len(p) for p in points])
+    points = np.stack([np.concatenate([p, np.zeros((most - len(p), 3), np.float32)]) for p in points])
+    half_height = jnp.asarray(sizes[:, 2] / 2, jnp.float32)
+    brown = jnp.asarray(rgb("brown"), jnp.float32)
+
+    def spawn(physics):
+        queue = physics.queue
+        over = queue.count >= count
+        empty = ~jnp.any(in_workspace(planar_poses(physics)[:count]))
+        come = empty & ~over
+        box = queue.order[jnp.minimum(queue.count, count - 1)]
+        pos = jnp.concatenate([jnp.asarray(SPAWN_XY, jnp.float32), half_height[box][None]])
+        slot = jnp.asarray(physics.scene.movable_slot)[box]
+        physics = place_movable(physics, slot, pos, poses.yaw_quat(queue.yaw[jnp.minimum(queue.count, count - 1)]),
+                                come)
+        return physics.replace(queue=queue.replace(count=queue.count + come.astype(jnp.int32))), over
+
+    def initialize(key, physics):
+        key_order, key_yaw, key_shade = jax.random.split(key, 3)
+        shade = jax.random.uniform(key_shade, (count,), jnp.float32, 0.5, 1.5)
+        box_of_geom = jnp.asarray(physics.scene.geom_object)
+        colours = jnp.clip(shade[jnp.minimum(box_of_geom, count - 1), None] * brown, 0.0, 1.0)
+        physics = physics.replace(geom_rgb=jnp.where((box_of_geom < count)[:, None], colours, physics.geom_rgb))
+        pos, quat = object_poses(physics)
+        pos = pos.at[count].set(pallet[:3])
+        quat = quat.at[count].set(poses.yaw_quat(pallet[3]))
+        physics = place_present(physics, pos, quat, jnp.arange(count + 1) == count)
+        queue = SpawnQueue(order=spawn_order(key_order, layers, per_layer),
+                           yaw=jax.random.uniform(key_yaw, (count,), jnp.float32, 0.0, 2 * np.pi),
+                           count=jnp.zeros((), jnp.int32))
+        physics, _ = spawn(physics.replace(queue=queue))
+        return physics
+
+    def goal(physics):
+        zone = Zone(pose=jnp.asarray(pallet), size=jnp.asarray(PALLET_ZONE, jnp.float32),
+                    points=jnp.asarray(points), valid=jnp.asarray(valid))
+        return Goal(objects=jnp.arange(count, dtype=jnp.int32), present=jnp.ones(count, bool),
+                    symmetry=jnp.zeros(count, jnp.float32), targets=jnp.asarray(targets),
+                    target_present=jnp.ones(count, bool), matches=jnp.eye(count, dtype=bool), zone=zone)
+
+    return RavenTask("palletizing-boxes", items, max_steps=30, pos_eps=0.01, initialize=initialize, goal=goal,
+                     after_action=spawn, pairs=pairs)
+
+
 TASKS: dict[str, Callable[[], RavenTask]] = {
     "block-insertion": block_insertion, "place-red-in-green": place_red_in_green,
     "align-box-corner": align_box_corner, "stack-block-pyramid": stack_block_pyramid,
-    "towers-of-hanoi": towers_of_hanoi}
+    "towers-of-hanoi": towers_of_hanoi, "palletizing-boxes": palletizing_boxes}
 """Task name -> its factory."""
