@@ -45,7 +45,7 @@ def check_dataset(dataset: TrajectoryDataset, arena: Arena, agent: str,
 
 def read_steps(path: str, arena: Arena, agent: str) -> dict[str, Any]:
     """The whole dataset at ``path``, checked against ``arena`` (:func:`check_dataset`), as numpy arrays in its
-    stored layout, keyed as :class:`jarena.data.Loader` keys its batches (fields by output key).
+    stored layout, fields keyed by their names (the arena's keys, which :func:`check_dataset` matched).
 
     Returns a dict: ``observation`` (dict of (sum T_i + N, ...): each trajectory's T_i + 1 observations end to
     end), ``action`` (dict of (sum T_i, ...)), ``goal`` (dict of (N, ...)), ``reward`` float32, ``terminated`` and
@@ -55,8 +55,8 @@ def read_steps(path: str, arena: Arena, agent: str) -> dict[str, Any]:
         check_dataset(dataset, arena, agent)
         n, steps = dataset.num_trajectories(), dataset.num_steps()
         rows = {"observation": steps + n, "action": steps, "goal": n}
-        out: dict[str, Any] = {group: {f.output_key: dataset.rows(f"{group}/{name}", 0, rows[group])
-                                       for name, f in getattr(dataset.schema, group).items()} for group in rows}
+        out: dict[str, Any] = {group: {name: dataset.rows(f"{group}/{name}", 0, rows[group])
+                                       for name in getattr(dataset.schema, group)} for group in rows}
         out.update({name: dataset.rows(f"step/{name}", 0, steps) for name in STEP_FIELDS})
         out["lengths"] = dataset.lengths().astype(np.int32)
     return out

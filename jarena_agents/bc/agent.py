@@ -63,7 +63,6 @@ from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
 from jarena.core.spec import Box, Discrete, Spec
 from jarena.core.types import Info
-from jarena.data.dataset import TrajectoryDataset
 from jarena.data.loader import draw_indices
 from jarena.data.schema import DatasetError
 from jarena_agents import augment, networks, normalizer
@@ -77,7 +76,7 @@ from jarena_agents.config import (
     non_negative,
     positive,
 )
-from jarena_agents.datasets import check_dataset, to_device
+from jarena_agents.datasets import read_steps, to_device
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
 
@@ -283,19 +282,14 @@ def read_dataset(path: str, arena: Arena, chunk: int) -> dict[str, Any]:
     if not path:
         raise ValueError("bc needs demonstrations: set its config key dataset=PATH to a TrajectoryDataset "
                          "(collect one with `jarena collect AGENT ARENA --out PATH`)")
-    with TrajectoryDataset(path, "r") as dataset:
-        check_dataset(dataset, arena, "bc")
-        lengths = dataset.lengths()
-        if lengths.max() < chunk:
-            raise DatasetError(f"bc: chunk={chunk} needs trajectories of at least {chunk} steps; the longest in "
-                               f"{path!r} has {lengths.max()}")
-        n, steps = dataset.num_trajectories(), dataset.num_steps()
-
-        def rows(group, count):
-            return {name: dataset.rows(f"{group}/{name}", 0, count) for name in getattr(dataset.schema, group)}
-
-        observation, goal = rows("observation", steps + n), rows("goal", n)
-        (action,) = rows("action", steps).values()
+    read = read_steps(path, arena, "bc")
+    lengths = read["lengths"]
+    if lengths.max() < chunk:
+        raise DatasetError(f"bc: chunk={chunk} needs trajectories of at least {chunk} steps; the longest in "
+                           f"{path!r} has {lengths.max()}")
+    n, steps = len(lengths), int(lengths.sum())
+    observation, goal = read["observation"], read["goal"]
+    (action,) = read["action"].values()
     row_goal = {k: np.repeat(v, lengths + 1, axis=0) for k, v in goal.items()}
     images = networks.image_keys(arena.spec)  # not standardised: the CNN scales them
     vector = {k: v for k, v in observation.items() if k not in images}

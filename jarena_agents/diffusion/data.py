@@ -18,10 +18,9 @@ import numpy as np
 from flax import struct
 
 from jarena.core.arena import Arena
-from jarena.data.dataset import TrajectoryDataset
 from jarena.data.loader import draw_indices
 from jarena.data.schema import DatasetError
-from jarena_agents.datasets import check_dataset
+from jarena_agents.datasets import read_steps
 
 RANGE_EPSILON = 1e-4  # a dimension whose values span less is constant: it normalises to 0
 
@@ -99,21 +98,16 @@ def read_dataset(path: str, arena: Arena, images: tuple[str, ...], horizon: int,
     if not path:
         raise ValueError("diffusion needs demonstrations: set its config key dataset=PATH to a TrajectoryDataset "
                          "(collect one with `jarena collect AGENT ARENA --out PATH`)")
-    with TrajectoryDataset(path, "r") as dataset:
-        check_dataset(dataset, arena, "diffusion")
-        lengths = dataset.lengths()
-        needed = shortest_useful(horizon, obs_horizon, action_steps)
-        if lengths.max() < needed:
-            raise DatasetError(f"diffusion: horizon={horizon} with obs_horizon={obs_horizon} and "
-                               f"action_steps={action_steps} needs trajectories of at least {needed} steps; the "
-                               f"longest in {path!r} has {lengths.max()}")
-        n, steps = dataset.num_trajectories(), dataset.num_steps()
-
-        def rows(group, count):
-            return {name: dataset.rows(f"{group}/{name}", 0, count) for name in getattr(dataset.schema, group)}
-
-        observation, goal = rows("observation", steps + n), rows("goal", n)
-        (action,) = rows("action", steps).values()
+    read = read_steps(path, arena, "diffusion")
+    lengths = read["lengths"]
+    needed = shortest_useful(horizon, obs_horizon, action_steps)
+    if lengths.max() < needed:
+        raise DatasetError(f"diffusion: horizon={horizon} with obs_horizon={obs_horizon} and "
+                           f"action_steps={action_steps} needs trajectories of at least {needed} steps; the "
+                           f"longest in {path!r} has {lengths.max()}")
+    n, steps = len(lengths), int(lengths.sum())
+    observation, goal = read["observation"], read["goal"]
+    (action,) = read["action"].values()
     action = action.reshape(steps, -1)
     row_goal = {k: np.repeat(v, lengths + 1, axis=0) for k, v in goal.items()}
     rest = [v for k, v in sorted(observation.items()) if k not in images]
