@@ -5,7 +5,7 @@ Builder ``raven``::
     raven|task:block-insertion
 
 - ``task``: a Ravens task (:data:`.tasks.TASKS`): ``block-insertion``, ``place-red-in-green``,
-  ``align-box-corner``, ``stack-block-pyramid``, ``towers-of-hanoi``, ``palletizing-boxes``.
+  ``align-box-corner``, ``stack-block-pyramid``, ``towers-of-hanoi``, ``palletizing-boxes``, ``packing-boxes``.
 - observations (:mod:`.heightmap`): Ravens' top-down orthographic heightmap of the workspace (x in [0.25, 0.75] m,
   y in [-0.5, 0.5] m, 3.125 mm per pixel): ``rgb`` uint8 (320, 160, 3) and ``height`` float32 (320, 160) metres.
 - actions (:mod:`.primitive`): float32 (5,) ``(pick_row, pick_col, place_row, place_col, place_yaw)``, one
@@ -102,7 +102,8 @@ def build(task: str = "block-insertion", timestep: float = 0.005, substeps: int 
         raise ArenaStringError(str(e)) from None
     spec = TASKS[task]()
     scene = build_scene(spec.items, PhysicsOptions(timestep=float(timestep), iterations=iterations,
-                                                   ls_iterations=iterations), spec.pairs)
+                                                   ls_iterations=iterations, max_geom_pairs=spec.max_geom_pairs),
+                        spec.pairs)
     dynamics = raven_dynamics(scene, substeps, render=_renderer(scene))
     primitive = pick_and_place(settle, spec.after_action)
     tool = chain(make_tool(action), primitive) if action is not None else primitive

@@ -66,7 +66,8 @@ class RavenPhysics:
         changes them (a box of random size); sizes and positions go into the model at every step.
       scene: the scene (static).
       queue: what a task keeps of the episode beside the physics (palletizing's boxes still to come,
-        :class:`.tasks.SpawnQueue`); ``()`` for most tasks.
+        :class:`.tasks.SpawnQueue`; packing's container and targets, :class:`.packing.Packing`); ``()`` for most
+        tasks.
     """
 
     data: mjx.Data
@@ -243,14 +244,15 @@ def _with_grasp(model: mjx.Model, grasp: jax.Array) -> mjx.Model:
 
 
 def _with_shapes(model: mjx.Model, physics: RavenPhysics) -> mjx.Model:
-    """``model`` with the episode's box sizes and positions (only where the scene has resizable shapes); masses
-    and inertias stay the model's."""
+    """``model`` with the episode's box sizes and positions, and the bounding spheres that go with them (only
+    where the scene has resizable shapes); masses and inertias stay the model's."""
     scene = physics.scene
     if not scene.resizable:
         return model
     geoms = jnp.asarray(scene.geom)
     return model.replace(geom_size=model.geom_size.at[geoms].set(physics.geom_size),
-                         geom_pos=model.geom_pos.at[geoms].set(physics.geom_pos))
+                         geom_pos=model.geom_pos.at[geoms].set(physics.geom_pos),
+                         geom_rbound=model.geom_rbound.at[geoms].set(jnp.linalg.norm(physics.geom_size, axis=-1)))
 
 
 def raven_dynamics(scene: Scene, substeps: int = 4, render: Callable | None = None) -> Dynamics:

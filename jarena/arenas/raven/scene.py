@@ -215,11 +215,16 @@ class PhysicsOptions:
     Attributes:
       timestep: seconds per physics step.
       iterations, ls_iterations: the constraint solver's (Newton) iterations and line-search iterations.
+      max_geom_pairs: ``None``, or at most this many pairs of boxes (of those their collision bits and the
+        explicit pairs allow) go through collision detection at each physics step: the nearest, by the distance
+        between their bounding spheres (MJX's broad phase, its ``max_geom_pairs``); the table's pairs are all
+        kept.
     """
 
     timestep: float = 0.005
     iterations: int = 10
     ls_iterations: int = 10
+    max_geom_pairs: int | None = None
 
 
 def _box_geom(box: Box, colour, collision: tuple[int, int], mass: float | None, friction: float,
@@ -267,6 +272,8 @@ def mjcf(items: tuple[Item, ...], options: PhysicsOptions, pairs: tuple[tuple[st
         for a, b in pairs for j, box_a in enumerate(by_name[a].shape.boxes) if box_a.solid
         for k, box_b in enumerate(by_name[b].shape.boxes) if box_b.solid)
     contact = f"\n  <contact>{contacts}</contact>" if pairs else ""
+    if options.max_geom_pairs is not None:
+        contact += f'\n  <custom><numeric name="max_geom_pairs" data="{int(options.max_geom_pairs)}"/></custom>'
     return f"""<mujoco model="raven">
   <option timestep="{options.timestep}" iterations="{options.iterations}" ls_iterations="{options.ls_iterations}"
           cone="pyramidal"/>

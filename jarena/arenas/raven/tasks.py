@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jarena.arenas.raven import layout, poses
+from jarena.arenas.raven import layout, packing, poses
 from jarena.arenas.raven import scene as shapes
 from jarena.arenas.raven.heightmap import BOUNDS
 from jarena.arenas.raven.physics import RavenPhysics, object_poses, place_movable, place_objects
@@ -37,6 +37,8 @@ class RavenTask:
         the place): what the task changes between actions (palletizing spawns the next box), and whether that
         ends the episode (bool ()); ``None``: nothing.
       pairs: explicit contact pairs of items (names), beside those their collision bits allow.
+      max_geom_pairs: ``None``, or the pairs of boxes that go through collision detection at each physics step,
+        the nearest (:class:`.scene.PhysicsOptions`).
     """
 
     name: str
@@ -47,6 +49,7 @@ class RavenTask:
     goal: Callable[[RavenPhysics], Goal]
     after_action: Callable[[RavenPhysics], tuple[RavenPhysics, jax.Array]] | None = None
     pairs: tuple[tuple[str, str], ...] = ()
+    max_geom_pairs: int | None = None
 
 
 def on_table(planar: jax.Array) -> jax.Array:
@@ -423,8 +426,89 @@ def palletizing_boxes() -> RavenTask:
                      after_action=spawn, pairs=pairs)
 
 
+def packing_boxes() -> RavenTask:
+    """Ravens' ``packing-boxes``: put every box into the open container, which they fill, 1 cm apart, when packed
+    as they were cut.
+
+    The container (:mod:`.packing`) is 5-30 x 5-30 x 5 cm (uniform), laid out first in free space with a random
+    heading; its inside less a 1 cm rim is cut into boxes by Ravens' kd-split (:func:`.packing.kd_split`), each
+    box 5 cm high and of one of Ravens' colours but brown (drawn for each); then each box in turn (Ravens'
+    order) goes to a random pose in the free space left by the container and the boxes before it (one that finds
+    none starts in its place in the container). The goal is one zone (Ravens' ``zone`` metric): the share of all
+    the boxes' points (a 2 cm grid over each box) inside the container's outer rectangle; the targets where the
+    oracle puts each box are its place in the container as cut (Ravens' targets, which the score does not use;
+    any heading matches, 1 cm); 20 actions.
+
+    Where MJX makes it differ from Ravens: the scene has :data:`.packing.MAX_BOXES` box slots, each resized per
+    episode (with the mass and inertia of the largest box); the slots an episode does not use stay parked off the
+    table, apart (Ravens creates as many boxes as the split makes), and the split stops cutting once more boxes
+    would not fit (Ravens' rule made more than 20 once in 200,000 simulated episodes). The container's floor is
+    only seen (a box in it rests on the table, 1 mm lower). Boxes collide with the table, the container's walls
+    and each other, but only the :data:`.packing.MAX_GEOM_PAIRS` nearest pairs of boxes go through collision
+    detection at each physics step (MJX's broad phase).
+    """
+    count = packing.MAX_BOXES
+    items = tuple(Item(f"box{i}", packing.BOX_SLOT) for i in range(count)) + (
+        Item("container", packing.CONTAINER),)
+    colours = jnp.asarray(packing.BOX_COLOURS, jnp.float32)
+    size_low, size_high = (jnp.asarray(bound, jnp.float32) for bound in np.asarray(packing.CONTAINER_SIZE).T)
+
+    def geoms(scene):
+        """The box slots' geoms (one each, slot order) and the container's (floor, walls)."""
+        return np.flatnonzero(scene.geom_object < count), np.flatnonzero(scene.geom_object == count)
+
+    def initialize(key, physics):
+        box_geoms, container_geoms = geoms(physics.scene)
+        key_size, key_container, key_split, key_boxes, key_colour = jax.random.split(key, 5)
+        size = jax.random.uniform(key_size, (3,), jnp.float32, size_low, size_high)
+        pos, quat, _ = layout.random_pose(key_container, layout.border(), size)
+        half, centres = packing.container_parts(size)
+        xy, sizes, present = packing.kd_split(key_split, size[:2] - 2 * packing.MARGIN, count)
+        extents = jnp.concatenate([sizes, jnp.full((count, 1), size[2])], -1)
+        # Ravens' targets: the boxes where the split puts them, their centres at the container's mid-height
+        inside = jnp.concatenate([xy, jnp.full((count, 1), size[2] / 2)], -1)
+        target_pos = pos + poses.rotate(quat, inside)
+        targets = jnp.concatenate([target_pos, jnp.broadcast_to(poses.yaw_of(quat), (count, 1))], -1)
+        taken = layout.border() | layout.footprint((centres, half, jnp.zeros(len(centres))), pos, quat)
+
+        def spawn(taken, slot):
+            index, extent, here = slot
+            box_pos, box_quat, found = layout.random_pose(jax.random.fold_in(key_boxes, index), taken, extent)
+            found = found & here
+            covered = layout.footprint((jnp.zeros((1, 3)), extent[None] / 2, jnp.zeros(1)), box_pos, box_quat)
+            return taken | (covered & found), (box_pos, box_quat, found)
+
+        _, (box_pos, box_quat, found) = jax.lax.scan(spawn, taken, (jnp.arange(count), extents, present))
+        rest = target_pos.at[:, 2].set(size[2] / 2)
+        box_pos = jnp.where(found[:, None], box_pos, rest)
+        box_quat = jnp.where(found[:, None], box_quat, quat)
+        shade = colours[jax.random.randint(key_colour, (count,), 0, colours.shape[0])]
+        physics = physics.replace(
+            geom_size=physics.geom_size.at[box_geoms].set(
+                jnp.where(present[:, None], extents / 2, physics.geom_size[box_geoms])).at[container_geoms].set(half),
+            geom_pos=physics.geom_pos.at[container_geoms].set(centres),
+            geom_rgb=physics.geom_rgb.at[box_geoms].set(shade),
+            queue=packing.Packing(targets=targets, size=size))
+        return place_present(physics, jnp.concatenate([box_pos, pos[None]]),
+                             jnp.concatenate([box_quat, quat[None]]), jnp.append(present, True))
+
+    def goal(physics):
+        box_geoms, _ = geoms(physics.scene)
+        planar = planar_poses(physics)
+        present = on_table(planar[:count])
+        points, valid = packing.points_grid(2 * physics.geom_size[box_geoms])
+        zone = Zone(pose=planar[count], size=physics.queue.size[:2], points=points, valid=valid)
+        return Goal(objects=jnp.arange(count, dtype=jnp.int32), present=present,
+                    symmetry=jnp.zeros(count, jnp.float32), targets=physics.queue.targets, target_present=present,
+                    matches=jnp.eye(count, dtype=bool), zone=zone)
+
+    return RavenTask("packing-boxes", items, max_steps=20, pos_eps=0.01, initialize=initialize, goal=goal,
+                     max_geom_pairs=packing.MAX_GEOM_PAIRS)
+
+
 TASKS: dict[str, Callable[[], RavenTask]] = {
     "block-insertion": block_insertion, "place-red-in-green": place_red_in_green,
     "align-box-corner": align_box_corner, "stack-block-pyramid": stack_block_pyramid,
-    "towers-of-hanoi": towers_of_hanoi, "palletizing-boxes": palletizing_boxes}
+    "towers-of-hanoi": towers_of_hanoi, "palletizing-boxes": palletizing_boxes,
+    "packing-boxes": packing_boxes}
 """Task name -> its factory."""
