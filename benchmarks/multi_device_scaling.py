@@ -61,14 +61,15 @@ def evaluate_rate(arena, num_episodes: int, steps: int, devices: int, repeats: i
     return best[1] / best[0]
 
 
-def ppo_rate(arena, config: dict, num_arenas: int, total_steps: int, devices: int) -> tuple[float, float]:
+def ppo_rate(arena, config: dict, num_arenas: int, total_steps: int, devices: int, seed: int = 0
+             ) -> tuple[float, float]:
     """``(environment steps/s after the first chunk, final eval return)`` of PPO on ``devices`` devices."""
     agent = jarena_agents.build_agent("ppo", dict(config, num_arenas=num_arenas, total_steps=total_steps))
     updates = agent.settings.num_updates
     if updates < 2:
         raise SystemExit(f"--ppo-steps {total_steps} is {updates} PPO update of {agent.settings.steps_per_update} "
                          "steps; the rate is measured after the first chunk: give at least 2 updates' worth")
-    result = train_and_evaluate(agent, arena, jax.random.key(0), validate_every=0, progress=False, eval_videos=0,
+    result = train_and_evaluate(agent, arena, jax.random.key(seed), validate_every=0, progress=False, eval_videos=0,
                                 devices=devices, chunk_updates=max(1, updates // 10))
     first, last = result.history[0], result.history[-1]
     rate = (last["env_steps"] - first["env_steps"]) / max(last["seconds"] - first["seconds"], 1e-9)
@@ -85,6 +86,8 @@ def main() -> None:
     parser.add_argument("--ppo-config", default="default", help="config name under configs/ppo/<arena>/")
     parser.add_argument("--ppo-set", action="append", type=parse_override, default=[], metavar="KEY=VALUE",
                         help="a PPO setting over the config (value as YAML), e.g. minibatches=8; repeatable")
+    parser.add_argument("--seeds", default="0", help="PPO seeds, comma-separated: each device count trains once per "
+                        "seed (rate: the mean; return: every seed's, then mean and spread)")
     parser.add_argument("--devices", default="1,all", help="device counts to compare, the first the baseline")
     parser.add_argument("--measure", default="rollout,evaluate",
                         help="what to time besides PPO (which --ppo-steps turns on): rollout, evaluate, both (default) "
@@ -92,6 +95,7 @@ def main() -> None:
     parser.add_argument("--scaling", default="weak,strong", help="which to measure: weak, strong or both (default)")
     args = parser.parse_args()
     arena = jarena.build_arena(args.arena)
+    seeds = [int(s) for s in args.seeds.split(",")]
     counts = sorted({int(c) if c != "all" else len(jax.local_devices()) for c in args.devices.split(",")})
     config = jarena.retrieve_config("ppo", arena, args.ppo_config) if args.ppo_steps else None
     if config is not None:
@@ -123,14 +127,20 @@ def main() -> None:
             if "evaluate" in measures:
                 row["evaluate_steps_per_s"] = evaluate_rate(arena, n, args.rollout_steps, d, args.repeats)
             if args.ppo_steps:
-                row["ppo_steps_per_s"], row["ppo_return"] = ppo_rate(arena, config, n, args.ppo_steps, d)
+                runs = [ppo_rate(arena, config, n, args.ppo_steps, d, seed) for seed in seeds]
+                row["ppo_steps_per_s"] = float(np.mean([rate for rate, _ in runs]))
+                row["ppo_returns"] = [ret for _, ret in runs]
+                row["ppo_return"] = float(np.mean(row["ppo_returns"]))
             results[f"{scaling}/{d}"] = row
             base = results[f"{scaling}/{counts[0]}"]
             rates = [f"{what} {row[f'{what}_steps_per_s']:.4g} steps/s "
                      f"({row[f'{what}_steps_per_s'] / base[f'{what}_steps_per_s']:.2f}x)"
                      for what in ("rollout", "evaluate", "ppo") if f"{what}_steps_per_s" in row]
-            print(f"{scaling:6s} {d} device(s) {n:8d} arenas: " + ", ".join(rates)
-                  + (f", return {row['ppo_return']:.1f}" if args.ppo_steps else ""), flush=True)
+            if args.ppo_steps:
+                rates.append(f"return {row['ppo_return']:.1f}")
+                if len(seeds) > 1:
+                    rates[-1] += " (seeds " + ", ".join(f"{r:.1f}" for r in row["ppo_returns"]) + ")"
+            print(f"{scaling:6s} {d} device(s) {n:8d} arenas: " + ", ".join(rates), flush=True)
     print(json.dumps({"results": results, "environment": environment(arena=args.arena,
                                                                       devices=len(jax.local_devices()))}, indent=2))
 

@@ -292,6 +292,10 @@ def fetch(tree: PyTree, name: str = "fetch") -> PyTree:
             return np.asarray(multihost_utils.process_allgather(x, tiled=True))
         return jax.device_get(x)
 
+    for x in jax.tree_util.tree_leaves(tree):  # every copy under way before the first is waited for
+        if isinstance(x, jax.Array) and x.is_fully_addressable and not jax.dtypes.issubdtype(x.dtype,
+                                                                                          jax.dtypes.prng_key):
+            x.copy_to_host_async()
     return jax.tree_util.tree_map(get, tree)
 
 

@@ -74,13 +74,16 @@ def _compiled_episodes(agent: Agent, arena: Arena, num: int, max_steps: int, par
         carry = jax.lax.while_loop(cond, (lambda c: step(0, c)) if block == 1 else
                                    (lambda c: jax.lax.fori_loop(0, block, step, c)), carry)
         state, info, agent_state, done, ret, length, _, film, fault = carry
-        out = {"returns": ret, "lengths": length, "successes": info.success, "metrics": info.metrics,
-               "done": done, "faults": fault}
-        if filmed:
-            out["physics"] = film
+        # the per-episode results stay split over the devices: each copies its own share to the host (a
+        # replicated result would be gathered onto every device and copied out of one)
+        out = constrain({"returns": ret, "lengths": length, "successes": info.success, "metrics": info.metrics,
+                         "done": done, "faults": fault})
+        if filmed:  # whole on every device, so that each process holds a copy (see run_episodes)
+            out["physics"] = film if mesh is None else jax.lax.with_sharding_constraint(
+                film, distributed.replicated(mesh))
         return out
 
-    return jax.jit(episodes, out_shardings=None if mesh is None else distributed.replicated(mesh))
+    return jax.jit(episodes)
 
 
 def steps_per_check(max_steps: int, devices: int, most: int = 8) -> int:
@@ -140,8 +143,12 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
         agent_state, params = distributed.fetch((agent_state, params))
     episodes_fn = _compiled_episodes(agent, arena, num, int(max_steps), params_axis, int(filmed),
                                      mesh if count > 1 else None, jax.random.key_impl(key))
+    run_ids = host_ids = np.asarray(run_ids, np.int32)
+    if count > 1:  # each device receives its own episodes' ids
+        run_ids = jax.make_array_from_callback(host_ids.shape, distributed.batch_shardings(host_ids, mesh, num),
+                                               lambda index: host_ids[index])
     with distributed.tracing_on(mesh):  # each device steps its own arenas (jarena.core.batching.batch_step)
-        out = episodes_fn(np.asarray(jax.random.key_data(key)), agent_state, params, np.asarray(run_ids))
+        out = episodes_fn(np.asarray(jax.random.key_data(key)), agent_state, params, run_ids)
     physics = out.pop("physics", None)  # on one process it stays on device: the renderer pulls only what it draws
     out = jax.tree_util.tree_map(lambda x: x[: ids.size], distributed.fetch(out, f"{split} episodes"))
     if physics is not None and jax.process_count() > 1:
