@@ -57,6 +57,8 @@ def check_episode_ids(episodes, where: str = "episode") -> None:
     if episodes is None or isinstance(episodes, jax.core.Tracer):
         return
     ids = np.atleast_1d(np.asarray(episodes))
+    if ids.size == 0 or (ids.min() >= 0 and ids.max() < TRAIN_HIGH):  # two reductions: no per-id temporaries
+        return
     bad = ids[(ids < 0) | (ids >= TRAIN_HIGH)]
     if bad.size:
         raise ValueError(f"{where}: invalid episode id(s) {bad[:5].tolist()}; valid ids are in [0, 2^31) (eval "

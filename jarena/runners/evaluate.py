@@ -115,12 +115,16 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
     agent.check_fits(arena)  # an AgentArenaMismatch before compiling (cached per agent and arena)
     if split not in ("eval", "val"):
         raise ValueError(f"evaluate runs the fixed 'eval' or 'val' splits, got split={split!r}")
-    ids = np.asarray(list(arena.episodes(split)) if episodes is None else episodes, np.int32).reshape(-1)
+    ids = arena.episodes(split) if episodes is None else episodes
+    if isinstance(ids, range):  # a split's ids, or a user's range: no Python list of them
+        ids = np.arange(ids.start, ids.stop, ids.step, dtype=np.int64)
+    ids = np.asarray(ids).reshape(-1)
     if ids.size == 0:
         raise ValueError(f"no episodes to evaluate in split {split!r} of arena {arena.name!r}")
     if not 0 <= int(filmed) <= ids.size:
         raise ValueError(f"cannot film {filmed} of {ids.size} episodes; choose 0 .. {ids.size}")
-    check_episode_ids(ids, f"{arena.name}: evaluate")
+    check_episode_ids(ids, f"{arena.name}: evaluate")  # before the cast to int32, which would wrap 2^32 + 5 to 5
+    ids = ids.astype(np.int32, copy=False)
     if max_steps is not None:
         check_count(max_steps, "max_steps", "evaluate")
     max_steps = max_steps or arena.max_episode_steps

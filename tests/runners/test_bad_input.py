@@ -4,6 +4,7 @@ import dataclasses
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import pytest
 
 import jarena
@@ -115,6 +116,8 @@ def test_evaluate_refuses_negative_episode_ids_and_step_caps(cartpole):
     oracle = jarena_agents.build_agent("oracle_cartpole")
     with pytest.raises(ValueError, match=r"evaluate.*-5"):
         jarena.evaluate(oracle, cartpole, jax.random.key(0), episodes=[0, -5])
+    with pytest.raises(ValueError, match=r"evaluate: invalid episode id\(s\) \[4294967301\]"):  # not wrapped to 5
+        jarena.evaluate(oracle, cartpole, jax.random.key(0), episodes=np.asarray([0, 2**32 + 5]))
     for bad in (0, -1):
         with pytest.raises(ValueError, match="evaluate: max_steps must be an integer >= 1"):
             jarena.evaluate(oracle, cartpole, jax.random.key(0), episodes=[0], max_steps=bad)
