@@ -15,7 +15,7 @@ import numpy as np
 
 from jarena.core.arena import Arena
 from jarena.data import DatasetError, TrajectoryDataset, configs_for
-from jarena.data.loader import draw_indices
+from jarena.data.loader import draw_indices, gather_device
 from jarena.data.schema import STEP_FIELDS
 
 PyTree = Any
@@ -79,16 +79,9 @@ def sample_windows(data: dict, key: jax.Array, batch_size: int, length: int) -> 
     step), ``reward``, ``terminated``, ``truncated``, ``mask`` (all true), ``first`` / ``last`` (the step starts /
     ends its trajectory), ``trajectory`` and ``step``.
     """
-    data = jax.tree_util.tree_map(jnp.asarray, data)
-    lengths = data["lengths"]
+    lengths = jnp.asarray(data["lengths"])
+    flat = {f"{group}/{name}": data[group][name] for group in GROUPS for name in data[group]}
+    flat.update({f"step/{name}": data[name] for name in STEP_FIELDS})
+    layout = tuple((*name.split("/")[:1], name, name.split("/")[1]) for name in flat)  # the batch keyed by name
     rank, step, mask = draw_indices(key, lengths, "window", batch_size, length)
-    step_rows = (jnp.cumsum(lengths) - lengths)[rank] + step  # trajectory i's first step row, then its steps
-    observation_rows = step_rows + rank  # its observations start i rows later (one more per trajectory)
-    at = lambda rows: (lambda x: x[rows])
-    batch = {"observation": jax.tree_util.tree_map(at(observation_rows), data["observation"]),
-             "next_observation": jax.tree_util.tree_map(at(observation_rows + 1), data["observation"]),
-             "action": jax.tree_util.tree_map(at(step_rows), data["action"]),
-             "goal": jax.tree_util.tree_map(at(rank), data["goal"]),
-             **{name: data[name][step_rows] for name in STEP_FIELDS}}
-    batch.update(mask=mask, first=step == 0, last=step == lengths[rank] - 1, trajectory=rank, step=step)
-    return batch
+    return gather_device(flat, rank, step, mask, lengths, jnp.arange(lengths.size, dtype=jnp.int32), layout)

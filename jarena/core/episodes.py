@@ -57,10 +57,8 @@ def check_episode_ids(episodes, where: str = "episode") -> None:
     if episodes is None or isinstance(episodes, jax.core.Tracer):
         return
     ids = np.atleast_1d(np.asarray(episodes))
-    if ids.size == 0 or (ids.min() >= 0 and ids.max() < TRAIN_HIGH):  # two reductions: no per-id temporaries
-        return
-    bad = ids[(ids < 0) | (ids >= TRAIN_HIGH)]
-    if bad.size:
+    if ids.size and (ids.min() < 0 or ids.max() >= TRAIN_HIGH):  # two reductions: no per-id temporaries
+        bad = ids[(ids < 0) | (ids >= TRAIN_HIGH)]
         raise ValueError(f"{where}: invalid episode id(s) {bad[:5].tolist()}; valid ids are in [0, 2^31) (eval "
                          f"from {EVAL_BASE}, val from {VAL_BASE}, train in [{TRAIN_LOW}, {TRAIN_HIGH}); "
                          "see arena.episodes(split))")

@@ -221,7 +221,7 @@ class Loader:
         """The batch drawn with ``key``, on device."""
         rank, step, mask = self.indices(key)
         if self.in_memory:
-            batch = _gather_device(self._device, rank, step, mask, jnp.asarray(self._lengths),
+            batch = gather_device(self._device, rank, step, mask, jnp.asarray(self._lengths),
                                    jnp.asarray(self.selected, jnp.int32), self._layout())
         else:
             batch = jax.device_put(self._gather_disk(np.asarray(rank), np.asarray(step), np.asarray(mask)))
@@ -296,8 +296,15 @@ def _assemble(columns: dict, rank, step, mask, lengths, selected, layout, xp) ->
 
 
 @functools.partial(jax.jit, static_argnames=("layout",))
-def _gather_device(data: dict, rank, step, mask, lengths, selected, layout) -> dict[str, Any]:
-    """The in-memory gather: ``data`` holds the selected rows only, trajectories laid end to end."""
+def gather_device(data: dict, rank, step, mask, lengths, selected, layout) -> dict[str, Any]:
+    """The batch of the draw ``(rank, step, mask)`` (:func:`draw_indices`) from arrays on device (jittable).
+
+    Args:
+      data: ``"group/name"`` -> the selected trajectories' rows laid end to end (observations T_i + 1 a
+        trajectory, steps T_i, goals 1).
+      lengths: int32 (N,), the selected trajectories' lengths; ``selected``: int32 (N,), their dataset indices.
+      layout: static tuple of ``(group, "group/name", batch key)`` for every array of ``data``.
+    """
     step_start = jnp.concatenate([jnp.zeros((1,), jnp.int32), jnp.cumsum(lengths)])[rank]
     flat = {"step": (step_start + step).reshape(-1), "observation": (step_start + rank + step).reshape(-1),
             "trajectory": rank.reshape(-1)}

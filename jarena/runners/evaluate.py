@@ -79,8 +79,7 @@ def _compiled_episodes(agent: Agent, arena: Arena, num: int, max_steps: int, par
         out = constrain({"returns": ret, "lengths": length, "successes": info.success, "metrics": info.metrics,
                          "done": done, "faults": fault})
         if filmed:  # whole on every device, so that each process holds a copy (see run_episodes)
-            out["physics"] = film if mesh is None else jax.lax.with_sharding_constraint(
-                film, distributed.replicated(mesh))
+            out["physics"] = distributed.replicate(film)
         return out
 
     return jax.jit(episodes)
@@ -147,10 +146,9 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
         agent_state, params = distributed.fetch((agent_state, params))
     episodes_fn = _compiled_episodes(agent, arena, num, int(max_steps), params_axis, int(filmed),
                                      mesh if count > 1 else None, jax.random.key_impl(key))
-    run_ids = host_ids = np.asarray(run_ids, np.int32)
     if count > 1:  # each device receives its own episodes' ids
-        run_ids = jax.make_array_from_callback(host_ids.shape, distributed.batch_shardings(host_ids, mesh, num),
-                                               lambda index: host_ids[index])
+        run_ids = jax.make_array_from_callback(run_ids.shape, distributed.batch_shardings(run_ids, mesh, num),
+                                               run_ids.__getitem__)
     with distributed.tracing_on(mesh):  # each device steps its own arenas (jarena.core.batching.batch_step)
         out = episodes_fn(np.asarray(jax.random.key_data(key)), agent_state, params, run_ids)
     physics = out.pop("physics", None)  # on one process it stays on device: the renderer pulls only what it draws

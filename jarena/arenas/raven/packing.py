@@ -18,6 +18,7 @@ import numpy as np
 from flax import struct
 
 from jarena.arenas.raven.scene import Box, Shape, rgb
+from jarena.arenas.raven.scoring import POINT_SPACING
 
 CONTAINER_SIZE = ((0.05, 0.3), (0.05, 0.3), (0.05, 0.05))
 """The container's range of full extents along x, y and z, metres (Ravens' ``get_random_size`` arguments)."""
@@ -34,8 +35,6 @@ MAX_GEOM_PAIRS = 32
 the nearest of 430 (:class:`.scene.PhysicsOptions`)."""
 WALL = 0.002
 """The container's walls and floor, metres thick (Ravens' ``container-template.urdf``)."""
-POINT_SPACING = 0.02
-"""The spacing of a box's points for the zone metric, metres (Ravens' ``get_object_points``)."""
 LARGEST_BOX = (0.1, 0.1, 0.05)
 """The largest box the split makes, metres: a part is cut while longer than 10 cm."""
 

@@ -34,6 +34,8 @@ from jarena.core.tree import as_float32
 
 ZONE_TOP = 0.3
 """Points higher than this above a zone's origin, metres, are not in it (Ravens' workspace top)."""
+POINT_SPACING = 0.02
+"""The spacing of an object's points for the zone metric, metres (Ravens' ``get_object_points``)."""
 
 
 @struct.dataclass

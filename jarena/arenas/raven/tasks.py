@@ -19,7 +19,7 @@ from jarena.arenas.raven import scene as shapes
 from jarena.arenas.raven.heightmap import BOUNDS
 from jarena.arenas.raven.physics import RavenPhysics, object_poses, place_movable, place_objects
 from jarena.arenas.raven.scene import BLOCK, Item, rgb
-from jarena.arenas.raven.scoring import Goal, Zone, planar_poses
+from jarena.arenas.raven.scoring import POINT_SPACING, Goal, Zone, planar_poses
 
 
 @dataclasses.dataclass(frozen=True)
@@ -283,8 +283,6 @@ STACK_MARGIN = 0.01
 layer's transposition, and the gap between neighbours (metres)."""
 SPAWN_XY = (0.5, -0.25)
 """Where each box comes in, metres (Ravens' spawn point)."""
-POINT_SPACING = 0.02
-"""The spacing of a box's points for the zone metric, metres (Ravens' ``get_object_points``)."""
 
 
 def stack_places() -> tuple[np.ndarray, np.ndarray]:
