@@ -10,7 +10,11 @@ overrides. Run it once per variant in a fresh process (XLA flags are read at sta
         python benchmarks/dreamer_step.py "$A"
 
 Prints one JSON line: the variant, milliseconds per update and per decision, gradient steps per update, and the
-minutes of training that 500k environment steps would take at that rate (decisions times the arena's action repeat).
+minutes of training that 500k environment steps would take at that rate (decisions times the arena's action repeat);
+or, when the program fails to compile or run, the variant and the error's first line. ``--compile-only`` stops after
+the first compiled call. ``--patch flat-norm`` clips gradients by a global norm computed over all leaves
+concatenated (one reduction) instead of optax's per-leaf sums, to tell whether a compiler failure comes from
+those per-leaf reductions.
 """
 
 from __future__ import annotations
@@ -22,10 +26,22 @@ import statistics
 import time
 
 import jax
+import jax.numpy as jnp
+import optax
 
 import jarena
 import jarena_agents
 from jarena.cli import parse_override
+
+
+def clip_by_flat_global_norm(max_norm: float) -> optax.GradientTransformation:
+    """optax's ``clip_by_global_norm`` with the norm taken over all leaves concatenated."""
+    def update(updates, state, params=None):
+        flat = jnp.concatenate([jnp.ravel(x) for x in jax.tree_util.tree_leaves(updates)])
+        norm = jnp.sqrt(jnp.sum(flat * flat))
+        clipped = jax.tree_util.tree_map(lambda t: jnp.where(norm < max_norm, t, t / norm * max_norm), updates)
+        return clipped, state
+    return optax.GradientTransformation(lambda params: optax.EmptyState(), update)
 
 
 def main() -> None:
@@ -36,7 +52,11 @@ def main() -> None:
     parser.add_argument("--set", action="append", type=parse_override, default=[], metavar="KEY=VALUE")
     parser.add_argument("--updates", type=int, default=20, help="updates per timed chunk")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--compile-only", action="store_true", help="stop after the first compiled call")
+    parser.add_argument("--patch", choices=["flat-norm"], default=None)
     args = parser.parse_args()
+    if args.patch == "flat-norm":
+        optax.clip_by_global_norm = clip_by_flat_global_norm
 
     arena = jarena.build_arena(args.arena)
     overrides = dict(args.set)
@@ -49,10 +69,21 @@ def main() -> None:
     state = agent.init_training(jax.random.key(0), arena)
     fill = jax.jit(lambda ts: agent.train(ts, arena, warmup))
     chunk = jax.jit(lambda ts: agent.train(ts, arena, args.updates))
+    variant = {"arena": args.arena, "overrides": overrides, "patch": args.patch,
+               "xla_flags": os.environ.get("XLA_FLAGS", ""), "device": jax.devices()[0].device_kind,
+               "jax": jax.__version__}
     start = time.perf_counter()
-    state, _ = fill(state)
-    jax.block_until_ready(state)
+    try:
+        state, _ = fill(state)
+        jax.block_until_ready(state)
+    except Exception as error:  # a compiler or runtime failure is this variant's result
+        print(json.dumps({**variant, "error": str(error).splitlines()[0][:300],
+                          "seconds": round(time.perf_counter() - start, 1)}), flush=True)
+        return
     fill_s = time.perf_counter() - start
+    if args.compile_only:
+        print(json.dumps({**variant, "compiled": True, "fill_and_compile_s": round(fill_s, 1)}), flush=True)
+        return
     start = time.perf_counter()
     state, _ = chunk(state)
     jax.block_until_ready(state)
@@ -68,9 +99,7 @@ def main() -> None:
     decisions = cfg.steps_per_update
     trained = bool(float(jax.device_get(metrics["model_loss"]).mean()) != 0.0) if "model_loss" in metrics else None
     print(json.dumps({
-        "arena": args.arena, "overrides": overrides, "xla_flags": os.environ.get("XLA_FLAGS", ""),
-        "device": jax.devices()[0].device_kind, "jax": jax.__version__,
-        "num_arenas": cfg.num_arenas, "gradient_steps_per_update": cfg.gradient_steps, "trained": trained,
+        **variant, "num_arenas": cfg.num_arenas, "gradient_steps_per_update": cfg.gradient_steps, "trained": trained,
         "ms_per_update": round(per_update * 1e3, 2), "ms_per_decision": round(per_update * 1e3 / decisions, 3),
         "minutes_for_500k_env_steps": round(500_000 / (decisions * repeat) * per_update / 60, 1),
         "fill_and_compile_s": round(fill_s, 1), "first_chunk_s": round(first_s, 1)}), flush=True)
