@@ -8,7 +8,7 @@
 #   bash benchmarks/dreamer_compile_check.sh ["ARENA"]
 set -u
 cd "$(dirname "$0")"
-D=${1:-"dmc|domain:walker,task:walk,action:repeat(2)"}
+D=${1:-"dmc|domain:walker,task:walk"}
 R=${RESULTS_DIR:-/tmp/res}; mkdir -p "$R"
 NOREDUCE=XLA_FLAGS=--xla_disable_hlo_passes=reduction-splitter,tree_reduction_rewriter,reduction-degenerate-dim-remover,reduction-dimension-grouper,reduction-layout-normalizer
 VARIANTS=(

@@ -2,7 +2,7 @@
 gradient steps), compiled chunks timed after their first call, for the agent's committed config with ``--set``
 overrides. Run it once per variant in a fresh process (XLA flags are read at start-up), e.g. on a GPU:
 
-    A="dmc|domain:walker,task:walk,action:repeat(2)"
+    A="dmc|domain:walker,task:walk"
     python benchmarks/dreamer_step.py "$A"                                # the default config
     python benchmarks/dreamer_step.py "$A" --set learning_starts=100000000  # collection alone
     python benchmarks/dreamer_step.py "$A" --set num_arenas=64              # more arenas per update
@@ -10,11 +10,11 @@ overrides. Run it once per variant in a fresh process (XLA flags are read at sta
         python benchmarks/dreamer_step.py "$A"
 
 Prints one JSON line: the variant, milliseconds per update and per decision, gradient steps per update, and the
-minutes of training that 500k environment steps would take at that rate (decisions times the arena's action repeat);
-or, when the program fails to compile or run, the variant and the error's first line. ``--compile-only`` stops after
-the first compiled call. ``--patch flat-norm`` clips gradients by a global norm computed over all leaves
-concatenated (one reduction) instead of optax's per-leaf sums, to tell whether a compiler failure comes from
-those per-leaf reductions.
+minutes of training that 500k environment steps would take at that rate (decisions times the config's and the
+arena's action repeat); or, when the program fails to compile or run, the variant and the error's first line.
+``--compile-only`` stops after the first compiled call. ``--patch flat-norm`` clips gradients by a global norm
+computed over all leaves concatenated (one reduction) instead of optax's per-leaf sums, to tell whether a compiler
+failure comes from those per-leaf reductions.
 """
 
 from __future__ import annotations
@@ -95,13 +95,14 @@ def main() -> None:
         jax.block_until_ready(state)
         times.append(time.perf_counter() - start)
     per_update = statistics.median(times) / args.updates
-    repeat = int(getattr(arena.tool, "substeps", 1) or 1)
-    decisions = cfg.steps_per_update
+    repeat = int(getattr(arena.tool, "substeps", 1) or 1)  # an arena that repeats actions itself
+    decisions = getattr(cfg, "decisions_per_update", cfg.steps_per_update)
+    env_steps = cfg.steps_per_update * repeat  # per update: the config's action_repeat and the arena's
     trained = bool(float(jax.device_get(metrics["model_loss"]).mean()) != 0.0) if "model_loss" in metrics else None
     print(json.dumps({
         **variant, "num_arenas": cfg.num_arenas, "gradient_steps_per_update": cfg.gradient_steps, "trained": trained,
         "ms_per_update": round(per_update * 1e3, 2), "ms_per_decision": round(per_update * 1e3 / decisions, 3),
-        "minutes_for_500k_env_steps": round(500_000 / (decisions * repeat) * per_update / 60, 1),
+        "minutes_for_500k_env_steps": round(500_000 / env_steps * per_update / 60, 1),
         "fill_and_compile_s": round(fill_s, 1), "first_chunk_s": round(first_s, 1)}), flush=True)
 
 

@@ -7,7 +7,7 @@
 #   bash benchmarks/dreamer_step_variants.sh ["ARENA"]
 set -u
 cd "$(dirname "$0")"
-D=${1:-"dmc|domain:walker,task:walk,action:repeat(2)"}
+D=${1:-"dmc|domain:walker,task:walk"}
 R=${RESULTS_DIR:-/tmp/res}; mkdir -p "$R"
 GPUS=$(nvidia-smi -L 2>/dev/null | wc -l); GPUS=$(( GPUS > 0 ? GPUS : 1 ))
 CB=XLA_FLAGS=--xla_gpu_enable_command_buffer=FUSION,CUBLAS,CUBLASLT,CUSTOM_CALL,CUDNN,WHILE,CONDITIONAL

@@ -240,7 +240,9 @@ def make_dreamer(config=None) -> TrainableAgent:
         return action, Memory(latent=latent, previous_action=wm.action_vector(spec.action, action, 1))
 
     def act(state: DreamerState, info: Info, key, privileged=None):
-        action, memory = choose(state.spec, state.params, state.memory, info, key, state.deterministic)
+        decide = lambda memory, info: choose(state.spec, state.params, memory, info, key, state.deterministic)
+        action, memory = online.hold_between_decisions(cfg.action_repeat, state.spec.action, info, state.memory,
+                                                       decide)
         return action, state.replace(memory=memory)
 
     def policy(train_state: DreamerTrainState, spec: ArenaSpec, deterministic: bool = True) -> DreamerState:
@@ -249,6 +251,7 @@ def make_dreamer(config=None) -> TrainableAgent:
         return DreamerState(params=params, memory=None, spec=spec, deterministic=deterministic)
 
     def init_training(key, arena: Arena) -> DreamerTrainState:
+        arena = online.decision_arena(arena, cfg.action_repeat)
         spec = arena.spec
         key, params_key, reset_key = jax.random.split(key, 3)
         params = init_params(params_key, spec)
@@ -345,6 +348,7 @@ def make_dreamer(config=None) -> TrainableAgent:
 
     def train(train_state: DreamerTrainState, arena: Arena, num_updates: int):
         """Runs ``num_updates`` updates (static) in one ``lax.scan``; metrics have a leading update axis."""
+        arena = online.decision_arena(arena, cfg.action_repeat)
         return jax.lax.scan(lambda ts, _: one_update(arena, ts), train_state, None, length=num_updates)
 
     agent = Agent(name="dreamer", init=init, act=act, reset=reset, batch_state=batch_state,

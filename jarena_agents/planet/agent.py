@@ -127,6 +127,10 @@ def check_action_spec(spec) -> None:
 def make_planet(config=None) -> TrainableAgent:
     cfg = make_config(PlaNetConfig, config, agent="planet")
     offline.check_augment(cfg.augment)
+    if cfg.dataset and cfg.action_repeat != 1:
+        raise ValueError(f"planet: action_repeat={cfg.action_repeat} holds actions while collecting online; a dataset "
+                         f"({cfg.dataset!r}) holds the transitions as collected: use action_repeat=1 (and collect "
+                         f"the dataset on an arena with action:repeat(n) for longer decisions)")
     cfg = cfg if cfg.dataset else online.check_online_config(cfg, "planet")
     model_cfg = cfg.model_config()
     cem = CEMConfig(samples=cfg.samples, horizon=cfg.horizon, iterations=cfg.iterations,
@@ -178,7 +182,9 @@ def make_planet(config=None) -> TrainableAgent:
 
     def act(state: PlaNetState, info: Info, key, privileged=None):
         noise = 0.0 if state.deterministic else cfg.exploration_noise
-        action, memory = plan_actions(state.spec, state.params, state.memory, info, key, noise)
+        decide = lambda memory, info: plan_actions(state.spec, state.params, memory, info, key, noise)
+        action, memory = online.hold_between_decisions(cfg.action_repeat, state.spec.action, info, state.memory,
+                                                       decide)
         return action, state.replace(memory=memory)
 
     def policy(train_state, spec: ArenaSpec, deterministic: bool = True) -> PlaNetState:
@@ -187,6 +193,7 @@ def make_planet(config=None) -> TrainableAgent:
         return PlaNetState(params=train_state.params, memory=None, spec=spec, deterministic=deterministic)
 
     def init_training(key, arena: Arena) -> PlaNetTrainState:
+        arena = online.decision_arena(arena, cfg.action_repeat)
         spec = arena.spec
         key, model_key, reset_key = jax.random.split(key, 3)
         params = wm.init_params(world_model(spec), model_key)
@@ -220,6 +227,7 @@ def make_planet(config=None) -> TrainableAgent:
 
     def train(train_state: PlaNetTrainState, arena: Arena, num_updates: int):
         """Runs ``num_updates`` updates (static) in one ``lax.scan``; metrics have a leading update axis."""
+        arena = online.decision_arena(arena, cfg.action_repeat)
         return jax.lax.scan(lambda ts, _: one_update(arena, ts), train_state, None, length=num_updates)
 
     def init_offline_training(key, arena: Arena) -> offline.OfflineTrainState:
