@@ -225,14 +225,16 @@ def observe(model: WorldModel, params: dict, seq: Sequences, key: jax.Array | No
         reset = lambda x, init: jnp.where(first_t.reshape((-1,) + (1,) * (x.ndim - 1)), init, x)
         latent = jax.tree_util.tree_map(reset, latent, model.initial((batch,)))
         action_t = jnp.where(first_t[:, None], 0.0, action_t)
-        latent, posterior, prior = model.rssm.apply(params["rssm"], latent, action_t, embed_t, key_t,
-                                                    method=RSSMCell.obs_step)
-        return latent, (latent, posterior, prior)
+        latent, posterior = model.rssm.apply(params["rssm"], latent, action_t, embed_t, key_t,
+                                             method=RSSMCell.posterior_step)
+        return latent, (latent, posterior)
 
     time_major = lambda x: jnp.swapaxes(x, 0, 1)
     xs = (time_major(embed), time_major(seq.action), time_major(seq.is_first), keys)
-    _, (latents, posteriors, priors) = jax.lax.scan(step, start, xs, unroll=model.config.scan_unroll)
-    return jax.tree_util.tree_map(time_major, (latents, posteriors, priors))
+    _, (latents, posteriors) = jax.lax.scan(step, start, xs, unroll=model.config.scan_unroll)
+    latents, posteriors = jax.tree_util.tree_map(time_major, (latents, posteriors))
+    # the prior depends on each step's deter alone: one batched head after the loop, not a step of it
+    return latents, posteriors, model.rssm.apply(params["rssm"], latents.deter, method=RSSMCell.prior)
 
 
 def imagine(model: WorldModel, params: dict, start: Latent, actions: jax.Array, key: jax.Array | None) -> Latent:

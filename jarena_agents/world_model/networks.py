@@ -60,7 +60,8 @@ class RSSMCell(nn.Module):
     ``img_step(latent, action, key)``: ``h' = GRU(h, [z, a])``, prior ``p(z' | h')``; returns the prior latent
     (a sample, or the mode when ``key`` is None) and the prior's probabilities (*, S, K).
     ``obs_step(latent, action, embed, key)``: the same ``h'``, then the posterior ``q(z' | h', embed)``;
-    returns ``(posterior latent, posterior probs, prior probs)``.
+    returns ``(posterior latent, posterior probs, prior probs)``; ``posterior_step`` the same without the prior,
+    ``prior(deter)`` the prior alone.
     """
 
     deter: int
@@ -92,11 +93,20 @@ class RSSMCell(nn.Module):
         prior = self._probs(self.prior_logits(self.prior_hidden(deter)))
         return Latent(deter, self._draw(prior, key)), prior
 
-    def obs_step(self, latent: Latent, action, embed, key):
+    def prior(self, deter):
+        """The prior's probabilities (*, S, K) given ``deter`` (*, D)."""
+        return self._probs(self.prior_logits(self.prior_hidden(deter)))
+
+    def posterior_step(self, latent: Latent, action, embed, key):
+        """``obs_step`` without the prior: ``(posterior latent, posterior probs)``. A filter over a sequence runs
+        this in its loop and the prior on all the steps' ``deter`` at once after it (fewer sequential ops)."""
         deter = self._deter(latent, action)
-        prior = self._probs(self.prior_logits(self.prior_hidden(deter)))
         posterior = self._probs(self.posterior_logits(self.posterior_hidden(jnp.concatenate([deter, embed], -1))))
-        return Latent(deter, self._draw(posterior, key)), posterior, prior
+        return Latent(deter, self._draw(posterior, key)), posterior
+
+    def obs_step(self, latent: Latent, action, embed, key):
+        following, posterior = self.posterior_step(latent, action, embed, key)
+        return following, posterior, self.prior(following.deter)
 
     def __call__(self, latent, action, embed, key):
         return self.obs_step(latent, action, embed, key)

@@ -17,6 +17,7 @@ from jarena_agents.config import ConfigError
 from jarena_agents.planners.cem import CEMConfig, cem_improve
 from jarena_agents.planners.sampling import rollout_returns
 from jarena_agents.world_model import model as wm
+from jarena_agents.world_model.networks import RSSMCell
 
 TINY = wm.WorldModelConfig(deter=16, stoch=4, classes=4, hidden=16, layers=1, bins=255)
 SMALL = wm.WorldModelConfig(deter=64, stoch=8, classes=8, hidden=64, layers=1, model_learning_rate=1e-3)
@@ -111,6 +112,31 @@ def test_observing_restarts_where_is_first(pendulum):
     whole, tail = whole_and_tail(params, experience)
     np.testing.assert_allclose(whole.deter[:, 3:], tail.deter, atol=1e-6)
     np.testing.assert_allclose(whole.stoch[:, 3:], tail.stoch, atol=1e-6)
+
+
+def test_observing_a_sequence_gives_the_cells_step_by_step_posteriors_and_priors(pendulum):
+    """``observe`` runs the posterior in its loop and the prior on all steps after it: the same as ``obs_step``."""
+    model = wm.make_world_model(pendulum.spec, TINY)
+    params = init_params(model, jax.random.key(0))
+    experience = jax.tree_util.tree_map(lambda x: jnp.swapaxes(x, 0, 1),
+                                        random_transitions(pendulum, jax.random.key(1), 2, 4))
+
+    @jax.jit
+    def sequence_and_steps(params, experience):
+        seq = wm.sequences_from_windows(pendulum.spec, experience)
+        observed = wm.observe(model, params, seq, jax.random.key(2))
+        embed = model.encoder.apply(params["encoder"], seq.vector, seq.images)
+        latent, stepped = model.initial((2,)), []
+        for t, key in enumerate(jax.random.split(jax.random.key(2), seq.reward.shape[1])):
+            latent, posterior, prior = model.rssm.apply(params["rssm"], latent, seq.action[:, t], embed[:, t], key,
+                                                        method=RSSMCell.obs_step)
+            stepped.append((latent.stoch, posterior, prior))
+        return observed, jax.tree_util.tree_map(lambda *xs: jnp.stack(xs, 1), *stepped)
+
+    (latents, posterior, prior), (stoch, step_posterior, step_prior) = sequence_and_steps(params, experience)
+    np.testing.assert_allclose(latents.stoch, stoch, atol=1e-6)
+    np.testing.assert_allclose(posterior, step_posterior, atol=1e-6)
+    np.testing.assert_allclose(prior, step_prior, atol=1e-6)
 
 
 def test_same_key_same_result_on_any_batch_size(pendulum):
