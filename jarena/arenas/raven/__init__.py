@@ -5,7 +5,8 @@ Builder ``raven``::
     raven|task:block-insertion
 
 - ``task``: a Ravens task (:data:`.tasks.TASKS`): ``block-insertion``, ``place-red-in-green``,
-  ``align-box-corner``, ``stack-block-pyramid``, ``towers-of-hanoi``, ``palletizing-boxes``, ``packing-boxes``.
+  ``align-box-corner``, ``stack-block-pyramid``, ``towers-of-hanoi``, ``palletizing-boxes``, ``packing-boxes``,
+  ``assembling-kits`` (its eval and val episodes draw unseen shapes: :mod:`.splits`).
 - observations (:mod:`.heightmap`): Ravens' top-down orthographic heightmap of the workspace (x in [0.25, 0.75] m,
   y in [-0.5, 0.5] m, 3.125 mm per pixel): ``rgb`` uint8 (320, 160, 3) and ``height`` float32 (320, 160) metres.
 - actions (:mod:`.primitive`): float32 (5,) ``(pick_row, pick_col, place_row, place_col, place_yaw)``, one
@@ -23,13 +24,14 @@ Builder ``raven``::
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jarena.arenas.raven import heightmap
+from jarena.arenas.raven import heightmap, splits
 from jarena.arenas.raven.physics import RavenPhysics, raven_dynamics
 from jarena.arenas.raven.primitive import pick_and_place
 from jarena.arenas.raven.scene import PhysicsOptions, Scene, build_scene
@@ -81,6 +83,11 @@ def _renderer(scene: Scene):
     return render
 
 
+def _split_layout(initialize, held_out, key, physics):
+    """A task's layout of the episode of ``key`` given whether it is held out (:attr:`.tasks.RavenTask.by_split`)."""
+    return initialize(key, physics, held_out(key))
+
+
 def _positive(key: str, value: Any, kind=int) -> None:
     if isinstance(value, bool) or not isinstance(value, int | float if kind is float else int) or not value > 0:
         raise ArenaStringError(f"{key} must be a positive {'number' if kind is float else 'integer'}, got {value!r}")
@@ -107,7 +114,12 @@ def build(task: str = "block-insertion", timestep: float = 0.005, substeps: int 
     dynamics = raven_dynamics(scene, substeps, render=_renderer(scene))
     primitive = pick_and_place(settle, spec.after_action)
     tool = chain(make_tool(action), primitive) if action is not None else primitive
-    tasks = [pose_goal(spec.goal, spec.name, spec.pos_eps, spec.initialize),
+    initialize = spec.initialize
+    if spec.by_split:
+        held_out = splits.held_out(Arena.num_eval_episodes if eval_episodes is None else int(eval_episodes),
+                                   Arena.num_val_episodes if val_episodes is None else int(val_episodes))
+        initialize = functools.partial(_split_layout, spec.initialize, held_out)
+    tasks = [pose_goal(spec.goal, spec.name, spec.pos_eps, initialize),
              time_limit((horizon or spec.max_steps) * tool.substeps)]
     if wrap is not None:
         tasks.append(make_task(wrap))

@@ -64,10 +64,12 @@ class RavenPhysics:
       geom_size, geom_pos, geom_rgb: float32 (G, 3): the drawable boxes' half extents, centres in their body's
         frame (metres) and colours in [0, 1] (``scene.geom`` order): the scene's, or the episode's where a task
         changes them (a box of random size); sizes and positions go into the model at every step.
+      geom_quat: float32 (G, 4): the boxes' orientations in their body's frame, the scene's or the episode's
+        (assembling-kits' shapes); into the model with the sizes.
       scene: the scene (static).
       queue: what a task keeps of the episode beside the physics (palletizing's boxes still to come,
-        :class:`.tasks.SpawnQueue`; packing's container and targets, :class:`.packing.Packing`); ``()`` for most
-        tasks.
+        :class:`.tasks.SpawnQueue`; packing's container and targets, :class:`.packing.Packing`; assembling-kits'
+        shapes and slots, :class:`.kits.Kitting`); ``()`` for most tasks.
     """
 
     data: mjx.Data
@@ -77,6 +79,7 @@ class RavenPhysics:
     geom_size: jax.Array
     geom_pos: jax.Array
     geom_rgb: jax.Array
+    geom_quat: jax.Array
     scene: Scene = struct.field(pytree_node=False)
     queue: Any = ()
 
@@ -244,14 +247,15 @@ def _with_grasp(model: mjx.Model, grasp: jax.Array) -> mjx.Model:
 
 
 def _with_shapes(model: mjx.Model, physics: RavenPhysics) -> mjx.Model:
-    """``model`` with the episode's box sizes and positions, and the bounding spheres that go with them (only
-    where the scene has resizable shapes); masses and inertias stay the model's."""
+    """``model`` with the episode's box sizes, positions and orientations, and the bounding spheres that go with
+    them (only where the scene has resizable shapes); masses and inertias stay the model's."""
     scene = physics.scene
     if not scene.resizable:
         return model
     geoms = jnp.asarray(scene.geom)
     return model.replace(geom_size=model.geom_size.at[geoms].set(physics.geom_size),
                          geom_pos=model.geom_pos.at[geoms].set(physics.geom_pos),
+                         geom_quat=model.geom_quat.at[geoms].set(physics.geom_quat),
                          geom_rbound=model.geom_rbound.at[geoms].set(jnp.linalg.norm(physics.geom_size, axis=-1)))
 
 
@@ -276,7 +280,8 @@ def raven_dynamics(scene: Scene, substeps: int = 4, render: Callable | None = No
         return RavenPhysics(data=data, held=jnp.asarray(-1, jnp.int32),
                             grasp=jnp.asarray([0, 0, 0, 1, 0, 0, 0], jnp.float32), slip=jnp.zeros((), jnp.float32),
                             geom_size=jnp.asarray(scene.geom_size), geom_pos=jnp.asarray(scene.geom_pos),
-                            geom_rgb=jnp.asarray(scene.geom_rgb), scene=scene)
+                            geom_rgb=jnp.asarray(scene.geom_rgb), geom_quat=jnp.asarray(scene.geom_quat),
+                            scene=scene)
 
     def after_reset(physics, params):
         model = _with_shapes(apply_params(device_model, params), physics)

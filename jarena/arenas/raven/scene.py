@@ -306,9 +306,10 @@ class Scene:
       mocap: int (N,): each object's mocap index, -1 for movable objects.
       cup: the cup's mocap index.
       geom: int (G,): the drawable box geoms' ids; ``geom_object`` int (G,) their object; ``geom_size`` float32
-        (G, 3) half extents; ``geom_pos`` float32 (G, 3) centres in their body's frame; ``geom_rgb`` float32
-        (G, 3) colours in [0, 1]; ``geom_solid`` bool (G,) whether each collides. Sizes, positions and colours
-        are the model's; a task may change them per episode (:class:`.physics.RavenPhysics`).
+        (G, 3) half extents; ``geom_pos`` float32 (G, 3) centres in their body's frame; ``geom_quat`` float32
+        (G, 4) orientations in their body's frame; ``geom_rgb`` float32 (G, 3) colours in [0, 1]; ``geom_solid``
+        bool (G,) whether each collides. Sizes, positions, orientations and colours are the model's; a task may
+        change them per episode (:class:`.physics.RavenPhysics`).
       movable_slot: int (N,): each object's index in ``movable``, -1 for fixed objects.
       resizable: whether a task changes boxes' sizes or positions per episode (any :attr:`Shape.resizable`).
     """
@@ -324,6 +325,7 @@ class Scene:
     geom_object: np.ndarray
     geom_size: np.ndarray
     geom_pos: np.ndarray
+    geom_quat: np.ndarray
     geom_rgb: np.ndarray
     geom_solid: np.ndarray
     movable_slot: np.ndarray
@@ -373,6 +375,7 @@ def build_scene(items: tuple[Item, ...], options: PhysicsOptions = PhysicsOption
         geom_object=np.array([object_of_body[model.geom_bodyid[g]] for g in geoms], np.int32),
         geom_size=np.asarray(model.geom_size[geoms], np.float32).reshape(-1, 3),
         geom_pos=np.asarray(model.geom_pos[geoms], np.float32).reshape(-1, 3),
+        geom_quat=np.asarray(model.geom_quat[geoms], np.float32).reshape(-1, 4),
         geom_rgb=np.asarray(model.geom_rgba[geoms, :3], np.float32).reshape(-1, 3),
         geom_solid=np.asarray((model.geom_contype[geoms] | model.geom_conaffinity[geoms]) > 0).reshape(-1),
         movable_slot=slot, resizable=any(item.shape.resizable for item in items))

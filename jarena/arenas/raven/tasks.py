@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jarena.arenas.raven import layout, packing, poses
+from jarena.arenas.raven import kits, layout, packing, poses
 from jarena.arenas.raven import scene as shapes
 from jarena.arenas.raven.heightmap import BOUNDS
 from jarena.arenas.raven.physics import RavenPhysics, object_poses, place_movable, place_objects
@@ -39,6 +39,8 @@ class RavenTask:
       pairs: explicit contact pairs of items (names), beside those their collision bits allow.
       max_geom_pairs: ``None``, or the pairs of boxes that go through collision detection at each physics step,
         the nearest (:class:`.scene.PhysicsOptions`).
+      by_split: whether the layout differs between splits: ``initialize`` then takes a third argument, bool (),
+        whether the episode is held out (an eval or val episode, :mod:`.splits`).
     """
 
     name: str
@@ -50,6 +52,7 @@ class RavenTask:
     after_action: Callable[[RavenPhysics], tuple[RavenPhysics, jax.Array]] | None = None
     pairs: tuple[tuple[str, str], ...] = ()
     max_geom_pairs: int | None = None
+    by_split: bool = False
 
 
 def on_table(planar: jax.Array) -> jax.Array:
@@ -504,9 +507,86 @@ def packing_boxes() -> RavenTask:
                      max_geom_pairs=packing.MAX_GEOM_PAIRS)
 
 
+KITS_MAX_GEOM_PAIRS = 16
+"""assembling-kits' pairs of boxes of different objects that go through collision detection at each physics step,
+the nearest of 360 (:class:`.scene.PhysicsOptions`)."""
+
+
+def assembling_kits() -> RavenTask:
+    """Ravens' ``assembling-kits``: put each of five objects into the slot of its shape on the kit.
+
+    The kit (:data:`.kits.KIT`, 28 x 20 cm) is laid out first in free space with a random heading; its five
+    slots sit at Ravens' offsets (:data:`.kits.SLOT_OFFSETS`), each with a heading drawn uniformly in [0, 2 pi)
+    (as Ravens', a heading in the world, not the kit's frame). The five shapes are drawn uniformly with
+    replacement from Ravens' training shapes 0-13 in a training episode and from the unseen shapes 14-19 in an eval
+    or val episode (Ravens' test set, which it uses in any mode but ``train``); slot ``i`` takes shape ``i``.
+    Then object ``i`` (purple, blue, green, yellow, red) goes to a random pose in the free space left by the kit
+    and the objects before it, at rest on the table (one that finds none keeps the pose drawn). The goal is one
+    stage: each object in any slot of its shape (Ravens' ``matches``) within 1 cm and 15 degrees modulo its
+    shape's symmetry (:data:`.kits.SYMMETRY`), 1/5 an object; 10 actions.
+
+    Where MJX makes it differ from Ravens (:mod:`.kits`): shapes are unions of up to six boxes, 2 cm high; the
+    scene has five object bodies whose boxes take the episode's shapes (with the mass, 0.1 kg, and the inertia of
+    a 6 x 6 cm slab); the kit and its slot marks are only seen, so an object put in a slot rests on the table, its
+    top 1.5 cm over the kit's. Objects collide with the table and each other, but only the
+    :data:`KITS_MAX_GEOM_PAIRS` nearest pairs of boxes of different objects go through collision detection at each
+    physics step (MJX's broad phase).
+    """
+    count = kits.OBJECTS
+    items = tuple(Item(f"object{i}", kits.OBJECT, kits.COLOURS[i]) for i in range(count)) + (Item("kit", kits.KIT),)
+    symmetry = jnp.asarray(kits.SYMMETRY, jnp.float32)
+    kit_footprint = tuple(x[:kits.KIT_TILES] for x in layout.shape_boxes(kits.KIT))  # its tiles cover it
+
+    def geoms(scene):
+        """The objects' boxes (object by object) and the kit's (tiles, then marks slot by slot)."""
+        return np.flatnonzero(scene.geom_object < count), np.flatnonzero(scene.geom_object == count)
+
+    def initialize(key, physics, held_out):
+        object_geoms, kit_geoms = geoms(physics.scene)
+        key_kit, key_shapes, key_slots, key_objects = jax.random.split(key, 4)
+        kit_pos, kit_quat, _ = layout.random_pose(key_kit, layout.border(), kits.KIT_SIZE)
+        low = jnp.where(held_out, kits.TEST_SHAPES[0], kits.TRAIN_SHAPES[0])
+        high = jnp.where(held_out, kits.TEST_SHAPES[-1], kits.TRAIN_SHAPES[-1]) + 1
+        shapes = jax.random.randint(key_shapes, (count,), low, high)
+        slot_yaw = jax.random.uniform(key_slots, (count,), jnp.float32, 0.0, 2 * np.pi)
+        kit_yaw = poses.yaw_of(kit_quat)
+        offsets = jnp.concatenate([jnp.asarray(kits.SLOT_OFFSETS, jnp.float32), jnp.zeros((count, 1))], -1)
+        slots = kit_pos + poses.rotate(kit_quat, offsets)
+        targets = jnp.concatenate([slots[:, :2], jnp.full((count, 1), kits.HEIGHT / 2), slot_yaw[:, None]], -1)
+        marks = kits.slot_marks(shapes, slot_yaw - kit_yaw)
+        boxes = kits.object_boxes(shapes)
+        taken = layout.border() | layout.footprint(kit_footprint, kit_pos, kit_quat)
+
+        def spawn(taken, one):
+            index, centres, half, yaw = one
+            pos, quat, found = layout.random_pose(jax.random.fold_in(key_objects, index), taken, kits.EXTENT)
+            covered = layout.footprint((centres, half, yaw), pos, quat)
+            return taken | (covered & found), (pos, quat)
+
+        _, (pos, quat) = jax.lax.scan(spawn, taken, (jnp.arange(count), *boxes))
+        mark_geoms = kit_geoms[kits.KIT_TILES:]
+        physics = physics.replace(
+            geom_size=physics.geom_size.at[object_geoms].set(boxes[1].reshape(-1, 3)).at[mark_geoms].set(marks[1]),
+            geom_pos=physics.geom_pos.at[object_geoms].set(boxes[0].reshape(-1, 3)).at[mark_geoms].set(marks[0]),
+            geom_quat=physics.geom_quat.at[object_geoms].set(poses.yaw_quat(boxes[2]).reshape(-1, 4)).at[
+                mark_geoms].set(poses.yaw_quat(marks[2])),
+            queue=kits.Kitting(shapes=shapes.astype(jnp.int32), targets=targets))
+        return place_objects(physics, jnp.concatenate([pos, kit_pos[None]]),
+                             jnp.concatenate([quat, kit_quat[None]]))
+
+    def goal(physics):
+        shapes = physics.queue.shapes
+        return Goal(objects=jnp.arange(count, dtype=jnp.int32), present=jnp.ones(count, bool),
+                    symmetry=symmetry[shapes], targets=physics.queue.targets, target_present=jnp.ones(count, bool),
+                    matches=shapes[:, None] == shapes[None, :])
+
+    return RavenTask("assembling-kits", items, max_steps=10, pos_eps=0.01, initialize=initialize, goal=goal,
+                     max_geom_pairs=KITS_MAX_GEOM_PAIRS, by_split=True)
+
+
 TASKS: dict[str, Callable[[], RavenTask]] = {
     "block-insertion": block_insertion, "place-red-in-green": place_red_in_green,
     "align-box-corner": align_box_corner, "stack-block-pyramid": stack_block_pyramid,
     "towers-of-hanoi": towers_of_hanoi, "palletizing-boxes": palletizing_boxes,
-    "packing-boxes": packing_boxes}
+    "packing-boxes": packing_boxes, "assembling-kits": assembling_kits}
 """Task name -> its factory."""
