@@ -329,16 +329,40 @@ state, chunk = _compiled_training(agent, arena, jax.random.key(0), mesh)
 with distributed.tracing_on(mesh):
     text = chunk.lower(state, arena, 2).compile().as_text()
 print("DEVICES", mesh.devices.size, "ALL-REDUCES", len(re.findall(r"all-reduce", text)))
+# diffusion: the noise and noise levels are drawn for the whole batch, then each device takes its share
+pendulum = jarena.build_arena("classic|domain:pendulum,time_limit:24")
+oracle = jarena_agents.build_agent("oracle_pendulum")
+with TrajectoryDataset(sys.argv[1] + "-pendulum", "w", **configs_for(pendulum)) as dataset:
+    jarena.collect(oracle, pendulum, dataset, 4, key=jax.random.key(1), progress=False)
+agent = jarena_agents.build_agent("diffusion", dict(dataset=sys.argv[1] + "-pendulum", down_dims=(8,), groups=2,
+                                                    step_embedding=16, horizon=8, obs_horizon=2, action_steps=4,
+                                                    batch_size=32, learning_rate=1e-2, warmup_steps=4,
+                                                    total_steps=32))
+runs = {}
+for devices in ("1", "all"):
+    result = train_and_evaluate(agent, pendulum, jax.random.key(0), chunk_updates=16, validate_every=0,
+                                progress=False, devices=devices, eval_videos=0)
+    runs[devices] = (jax.tree_util.tree_leaves(distributed.fetch(result.train_state.params)),
+                     [h["loss"] for h in result.history])
+for a, b in zip(runs["1"][0], runs["all"][0], strict=True):
+    np.testing.assert_allclose(a, b, rtol=2e-4, atol=2e-5)
+np.testing.assert_allclose(runs["1"][1], runs["all"][1], rtol=2e-4, atol=2e-5)
+state, chunk = _compiled_training(agent, pendulum, jax.random.key(0), mesh)
+with distributed.tracing_on(mesh):
+    text = chunk.lower(state, pendulum, 2).compile().as_text()
+print("DIFFUSION ALL-REDUCES", len(re.findall(r"all-reduce", text)))
 """
 
 
-def test_bc_splits_its_minibatches_over_the_devices_and_trains_as_one_device(tmp_path):
-    # bc samples its minibatches from a replicated dataset: on a mesh each device computes the loss of its
-    # share and XLA sums the gradients (all-reduces; a replicated minibatch compiles to none), and the run's
+def test_bc_and_diffusion_split_their_minibatches_over_the_devices_and_train_as_one_device(tmp_path):
+    # bc and diffusion sample their minibatches from a replicated dataset: on a mesh each device computes the loss
+    # of its share and XLA sums the gradients (all-reduces; a replicated minibatch compiles to none), and the run's
     # parameters and losses are one device's
     env = _cpu_devices(4)
     output = _run_all([[sys.executable, "-c", BC_ON_A_MESH, str(tmp_path / "demos")]], env)[0]
     found = re.search(r"DEVICES 4 ALL-REDUCES (\d+)", output)
+    assert found and int(found.group(1)) > 0, output[-2000:]
+    found = re.search(r"DIFFUSION ALL-REDUCES (\d+)", output)  # diffusion splits its batch the same way
     assert found and int(found.group(1)) > 0, output[-2000:]
 
 

@@ -5,7 +5,8 @@
 
 Each ``check_*`` function raises ``AssertionError`` naming the property that failed:
 
-- ``check_jit_consistency``: jit and non-jit reset/step agree;
+- ``check_jit_consistency``: jit and non-jit reset/step agree (in an image or map of 10,000 elements or more,
+  all but one element in 10,000: an edge pixel may flip under rounding);
 - ``check_no_retrace``: reset and step compile once, for new keys, states, actions and params;
 - ``check_vmap``: ``jit(vmap(...))`` over keys and over params keeps the tree structure with a batch axis;
 - ``check_determinism``: the same key gives a bit-identical trajectory, different keys different
@@ -43,9 +44,21 @@ def _leaves(tree):
             if not jax.dtypes.issubdtype(jnp.asarray(x).dtype, jax.dtypes.prng_key)]
 
 
+#: Arrays of at least this many elements (images, height maps) may differ at one element in this many: a pixel
+#: whose ray or footprint lies on an edge flips under rounding that leaves the state within tolerance.
+IMAGE_SIZE = 10_000
+
+
 def _assert_trees_close(a, b, what: str, rtol=1e-5, atol=1e-5):
+    """``a`` and ``b`` agree: floats within ``rtol``/``atol``, other leaves exactly; in an array of at least
+    :data:`IMAGE_SIZE` elements, all but one element in :data:`IMAGE_SIZE` (edge pixels, see there)."""
     chex.assert_trees_all_equal_structs(a, b)
     for x, y in zip(_leaves(a), _leaves(b), strict=True):
+        if x.size >= IMAGE_SIZE and x.shape == y.shape:
+            close = (np.isclose(x, y, rtol=rtol, atol=atol, equal_nan=True) if x.dtype.kind in "fc"
+                     else x == y)
+            if np.count_nonzero(~close) <= x.size // IMAGE_SIZE:
+                continue
         if x.dtype.kind in "fc":
             np.testing.assert_allclose(x, y, rtol=rtol, atol=atol, err_msg=what)
         else:
