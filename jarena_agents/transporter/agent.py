@@ -1,9 +1,11 @@
 """Transporter Networks (Zeng et al., CoRL 2020) as a trainable jarena agent: pick-and-place from top-down images.
 
-For arenas whose observations are a top-down colour image ``rgb`` uint8 (H, W, 3) and a height map ``height`` (H, W)
-(metres), and whose action is one pick and one place in their pixels, float32 (5,) ``(pick_row, pick_col,
-place_row, place_col, place_yaw)`` (rows 0 .. H - 1, columns 0 .. W - 1, the yaw in radians): the Raven arenas
-(``raven|task:block-insertion``).
+For arenas that observe a top-down colour image ``rgb`` uint8 (H, W, 3), with a height map ``height`` (H, W)
+(metres) or a depth image ``depth`` (H, W) or neither, and act with one pick and one place in that image: float32
+(5,) ``(pick_row, pick_col, place_row, place_col, place_yaw)`` in its pixels (rows 0 .. H - 1, columns 0 .. W - 1,
+the yaw in radians; the Raven arenas, ``raven|task:block-insertion``), or float32 (4,) ``(pick_u, pick_v, place_u,
+place_v)``, normalised image points without a yaw (the cloth arenas' ``pixel_pick_and_place(1)``). How the image
+and the action map onto the arena's is :mod:`jarena_agents.transporter.layout` (config key ``action_frame``).
 
 Acting (:mod:`jarena_agents.transporter.networks`), per arena: the attention network scores every pixel as the
 pick point and the best is picked; the transport network scores every pixel and each of ``rotations`` yaws (``k 2
@@ -12,7 +14,8 @@ window of ``crop`` x ``crop`` pixels around the pick; the best is the place and 
 policy is deterministic (train and eval modes alike) and each arena's action depends on its own image alone.
 
 Training reads a :class:`~jarena.data.dataset.TrajectoryDataset` (config key ``dataset``, e.g. collected with
-``jarena collect oracle_raven ...``) whole into device memory, as ``bc`` does; each update draws ``batch_size``
+``jarena collect oracle_raven ...`` or ``jarena collect oracle_cloth_flattening ...``) whole into device memory, as
+``bc`` does, its actions turned into pick and place pixels and a yaw; each update draws ``batch_size``
 demonstrated steps uniformly, moves each image and its pick and place pixels by a random planar motion
 (``augment``: :func:`jarena_agents.transporter.se2.augment`), and takes one Adam step on the sum of two
 cross-entropies: the attention's softmax over the pixels against the demonstrated pick pixel, and the transport's
@@ -32,14 +35,12 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 import optax
 from flax import struct
 
 from jarena import distributed
 from jarena.core.agent import Agent
 from jarena.core.arena import Arena, ArenaSpec
-from jarena.core.spec import Box
 from jarena.core.types import Info
 from jarena_agents.config import ConfigError, DatasetSchedule, at_least, make_config, positive
 from jarena_agents.datasets import to_device
@@ -47,11 +48,11 @@ from jarena_agents.networks import init_params
 from jarena_agents.registry import register_agent
 from jarena_agents.trainable import TrainableAgent
 from jarena_agents.transporter import data, se2
+from jarena_agents.transporter import layout as layout_lib
+from jarena_agents.transporter.layout import COLOR_KEY, FRAMES, Layout
 from jarena_agents.transporter.networks import CHANNELS, FCN, attention_logits, raw_input, transport_logits
 
 PyTree = Any
-COLOR_KEY, HEIGHT_KEY = "rgb", "height"
-"""The observation fields read: the colour image and the height map."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,6 +71,9 @@ class TransporterConfig(DatasetSchedule):
       learning_rate: Adam's step size.
       total_steps: gradient updates of a run.
       augment: move each demonstration by a random planar motion (image and pick and place pixels together).
+      action_frame: what the arena's action is (:data:`jarena_agents.transporter.layout.FRAMES`): ``auto`` (read
+        from its action spec), ``pixels`` (pick and place pixels and a yaw) or ``image_points`` (pick and place
+        ``(u, v)`` in [-1, 1], no yaw: ``rotations`` must be 1).
     """
 
     dataset: str = ""
@@ -82,6 +86,7 @@ class TransporterConfig(DatasetSchedule):
     learning_rate: float = positive(1e-4)
     total_steps: int = at_least(1, default=40_000)
     augment: bool = True
+    action_frame: str = "auto"
 
 
 def check_config(cfg: TransporterConfig) -> None:
@@ -93,26 +98,15 @@ def check_config(cfg: TransporterConfig) -> None:
     if cfg.crop % 2:
         raise ConfigError(f"transporter: crop must be even (the pick point is the crop's middle pixel once padded to "
                           f"an odd kernel), got {cfg.crop}")
+    if cfg.action_frame not in FRAMES:
+        raise ConfigError(f"transporter: unknown action_frame {cfg.action_frame!r}; choose from {list(FRAMES)}")
 
 
-def check_spec(spec: ArenaSpec) -> tuple[int, int]:
-    """The image's (H, W); a ``ConfigError`` unless the arena observes ``rgb`` uint8 (H, W, 3) and ``height`` (H, W)
-    and acts with float32 (5,) pick and place pixels and a yaw."""
-    spaces = getattr(spec.observation, "spaces", {})
-    colour, height = spaces.get(COLOR_KEY), spaces.get(HEIGHT_KEY)
-    if not (isinstance(colour, Box) and colour.dtype == np.uint8 and len(colour.shape) == 3 and colour.shape[2] == 3
-            and isinstance(height, Box) and tuple(height.shape) == tuple(colour.shape[:2])):
-        raise ConfigError(f"transporter reads a top-down colour image {COLOR_KEY!r} uint8 (H, W, 3) and height map "
-                          f"{HEIGHT_KEY!r} (H, W); arena {spec.name!r} observes {spec.observation!r}")
-    rows, cols = colour.shape[:2]
-    action = spec.action
-    pixels = np.array([rows - 1, cols - 1, rows - 1, cols - 1], np.float64)
-    if not (isinstance(action, Box) and action.shape == (5,) and np.all(np.asarray(action.low)[:4] == 0)
-            and np.all(np.asarray(action.high)[:4] == pixels)):
-        raise ConfigError(f"transporter acts with (pick_row, pick_col, place_row, place_col, place_yaw) in image "
-                          f"pixels (rows 0..{rows - 1}, columns 0..{cols - 1}) and radians; arena {spec.name!r} "
-                          f"acts with {action!r} (an action tool such as rescale in front of the primitive changes it)")
-    return rows, cols
+def check_spec(spec: ArenaSpec, cfg: TransporterConfig) -> Layout:
+    """The arena's :class:`~jarena_agents.transporter.layout.Layout` for ``cfg``; a ``ConfigError`` unless it
+    observes ``rgb`` uint8 (H, W, 3) (and ``height`` or ``depth`` (H, W), if either) and acts with pick and place
+    pixels and a yaw, or with pick and place image points (then ``rotations`` must be 1)."""
+    return layout_lib.layout_of(spec, cfg.action_frame, cfg.rotations)
 
 
 # ---------------------------------------------------------------------------------------------- states
@@ -256,20 +250,23 @@ def make_transporter(config=None) -> TrainableAgent:
     model = build_model(cfg)
 
     def init(key, spec: ArenaSpec, num_arenas: int) -> TransporterState:
-        check_spec(spec)
+        check_spec(spec, cfg)
         return TransporterState(params=model.init(key), spec=spec)
 
     def act(state: TransporterState, info: Info, key, privileged=None):
         batch = info.step.shape
-        images = raw_input(info.observation[COLOR_KEY], info.observation[HEIGHT_KEY])
+        layout = check_spec(state.spec, cfg)
+        images = raw_input(info.observation[COLOR_KEY], layout_lib.height_map(info.observation, layout))
         actions = jax.vmap(lambda image: model.choose(state.params, image))(images.reshape((-1,) + images.shape[-3:]))
+        actions = layout_lib.to_arena_action(actions, layout)
         spec = state.spec.action
         actions = jnp.clip(actions, jnp.asarray(spec.low, jnp.float32), jnp.asarray(spec.high, jnp.float32))
-        return actions.reshape(batch + (5,)).astype(spec.dtype), state
+        return actions.reshape(batch + (layout.action_size,)).astype(spec.dtype), state
 
     def init_training(key, arena: Arena) -> TransporterTrainState:
-        check_spec(arena.spec)
-        return model.start(key, to_device(data.read_dataset(cfg.dataset, arena, (COLOR_KEY, HEIGHT_KEY))))
+        layout = check_spec(arena.spec, cfg)
+        layout_lib.check_tool(getattr(arena.tool, "name", ""), layout, cfg.action_frame)
+        return model.start(key, to_device(data.read_dataset(cfg.dataset, arena, layout)))
 
     def policy(train_state: TransporterTrainState, spec: ArenaSpec, deterministic: bool = True) -> TransporterState:
         """The acting state of a trained agent."""

@@ -22,6 +22,7 @@ import jarena_agents
 from jarena.data import TrajectoryDataset
 from jarena_agents.config import ConfigError
 from jarena_agents.transporter import data, se2
+from jarena_agents.transporter.layout import layout_of
 from tests.agents.transporter.scenes import infos
 
 ARENA = "raven|task:block-insertion"
@@ -72,7 +73,7 @@ def test_the_oracle_turns_the_block_as_the_transport_turns_its_crops(demos):
 
 def test_transporter_trains_on_oracle_demonstrations_and_acts_in_the_action_spec(demos):
     arena = jarena.build_arena(ARENA)
-    host = data.read_dataset(demos, arena, ("rgb", "height"))
+    host = data.read_dataset(demos, arena, layout_of(arena.spec))
     with TrajectoryDataset(demos, "r") as dataset:
         first = [dataset.get_trajectory(i)["observation"] for i in range(2)]
         assert dataset.lengths().tolist() == [1, 1]  # the oracle inserts the block in one action
