@@ -6,7 +6,8 @@ and success over the 100 eval episodes, with the wall time of each part. Made fo
 
 1. ``jarena.collect``: ``--demos`` episodes of ``oracle_raven`` (training episodes) into a dataset;
 2. ``train_and_evaluate``: ``transporter`` for ``--steps`` gradient updates (default config: the paper's), then the
-   final policy on the 100 eval episodes (no validation, unless ``--validations``).
+   final policy on the 100 eval episodes (no validation, unless ``--validations``: then the policy of ``--select``,
+   by default the best validation success, as Transporter's paper reports the best validated snapshot).
 
 Prints the oracle's success over the collected episodes, the training loss at the start and the end, the success
 rate and mean return over the eval episodes, and the wall times (compilation included; the training's also without
@@ -38,6 +39,8 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=40_000, help="gradient updates")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--validations", type=int, default=0, help="validate this many times during training")
+    parser.add_argument("--select", default="best:success_rate",
+                        help="with --validations, the policy evaluated (the paper reports the best validated)")
     parser.add_argument("--devices", default=None, help="train data-parallel on N devices, or 'all'")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key")
     parser.add_argument("--run-dir", default=None, help="keep the dataset, logs and results here")
@@ -63,7 +66,8 @@ def main() -> None:
 
         agent = jarena_agents.build_agent("transporter", dict(overrides, dataset=str(demos), total_steps=args.steps))
         start = time.perf_counter()
-        schedule = dict(validations=args.validations) if args.validations else dict(validate_every=0)
+        schedule = (dict(validations=args.validations, select=args.select) if args.validations
+                    else dict(validate_every=0))
         result = train_and_evaluate(agent, arena, jax.random.key(args.seed), run_dir=root / "run", progress=False,
                                     eval_videos=0, devices=devices, **schedule)
         total_s = time.perf_counter() - start
@@ -80,6 +84,7 @@ def main() -> None:
               flush=True)
         print(json.dumps({"demos": args.demos, "steps": args.steps, "config": agent.config, "collect_s": collect_s,
                           "train_s": train_s, "updates_per_s": steady, "evaluate_s": total_s - train_s,
+                          "selected": result.evaluation.selected,
                           **{k: summary[k] for k in ("success_rate", "return_mean", "episodes")}}, default=str))
 
 
