@@ -190,9 +190,9 @@ def make_dreamer(config=None) -> TrainableAgent:
     model_cfg = cfg.model_config()
     buffer = make_buffer(cfg.num_arenas, cfg.buffer_size, cfg.batch_size, mode="window", length=cfg.sequence_length)
     model_opt = wm.model_optimizer(model_cfg)
-    actor_opt = optax.chain(optax.clip_by_global_norm(cfg.behaviour_grad_clip),
+    actor_opt = optax.chain(wm.clip_by_flat_global_norm(cfg.behaviour_grad_clip),
                             optax.adam(cfg.actor_learning_rate, eps=1e-5))
-    critic_opt = optax.chain(optax.clip_by_global_norm(cfg.behaviour_grad_clip),
+    critic_opt = optax.chain(wm.clip_by_flat_global_norm(cfg.behaviour_grad_clip),
                              optax.adam(cfg.critic_learning_rate, eps=1e-5))
 
     def world_model(spec: ArenaSpec) -> wm.WorldModel:

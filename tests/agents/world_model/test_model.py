@@ -7,6 +7,7 @@ import functools
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optax
 import pytest
 
 import jarena
@@ -274,3 +275,14 @@ def test_a_model_trains_offline_from_a_collected_dataset(pendulum, tmp_path):
             params, opt_state, metrics = step(params, opt_state, batch, jax.random.key(i))
             first = float(metrics["observation_loss"]) if first is None else first
     assert float(metrics["observation_loss"]) < 0.1 * first, (first, float(metrics["observation_loss"]))
+
+
+def test_flat_global_norm_clip_equals_optax_per_leaf_clip():
+    # the world model's and Dreamer's clip: one norm over all leaves concatenated, the same updates as optax's
+    tree = {"w": jnp.arange(12.0).reshape(3, 4) - 5.0, "b": jnp.array([3.0]), "c": {"s": jnp.array(-2.0)}}
+    for max_norm in (1.0, 5.0, 1e3):  # clipped, clipped, untouched
+        ours, _ = wm.clip_by_flat_global_norm(max_norm).update(tree, optax.EmptyState())
+        theirs, _ = optax.clip_by_global_norm(max_norm).update(tree, optax.EmptyState())
+        for a, b in zip(jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(theirs)):
+            np.testing.assert_allclose(a, b, rtol=1e-6)
+        assert float(optax.global_norm(ours)) == pytest.approx(min(max_norm, float(optax.global_norm(tree))), rel=1e-6)
