@@ -460,7 +460,7 @@ def _plot(path: Path, history, validations, evaluation, agent: str, arena: str, 
         ax.plot([selected["env_steps"]], [selected["validation_return"]], "*", color="C3", markersize=14,
                 label=f"evaluated policy ({selected['select']}, step {selected['env_steps']})")
     ax.axhline(evaluation.summary()["return_mean"], color="k", ls="--",
-               label=f"final evaluation of that policy ({evaluation.summary()['return_mean']:.1f})")
+               label=f"final evaluation of that policy ({evaluation.summary()['return_mean']:.4g})")
     handles, labels = ax.get_legend_handles_labels()
     metric = str(selected.get("select", ""))[5:] if str(selected.get("select", "")).startswith("best:") else ""
     if metric and validations and metric in validations[0]:
