@@ -188,6 +188,7 @@ def make_dreamer(config=None) -> TrainableAgent:
     cfg = make_config(DreamerConfig, config, agent="dreamer")
     cfg = online.check_online_config(cfg, "dreamer")
     model_cfg = cfg.model_config()
+    compute = wm.compute_dtype(model_cfg, "dreamer")
     buffer = make_buffer(cfg.num_arenas, cfg.buffer_size, cfg.batch_size, mode="window", length=cfg.sequence_length)
     model_opt = wm.model_optimizer(model_cfg)
     actor_opt = optax.chain(wm.clip_by_flat_global_norm(cfg.behaviour_grad_clip),
@@ -202,10 +203,11 @@ def make_dreamer(config=None) -> TrainableAgent:
     def actor(spec: ArenaSpec) -> Head:
         check_action_spec(spec.action)
         # a discrete actor starts uniform (zero logits), as DreamerV3's nearly does (output scale 0.01)
-        return Head(actor_outputs(spec.action), cfg.hidden, cfg.layers, zero_init=isinstance(spec.action, Discrete))
+        return Head(actor_outputs(spec.action), cfg.hidden, cfg.layers, zero_init=isinstance(spec.action, Discrete),
+                    dtype=compute)
 
     def critic() -> Head:
-        return Head(cfg.bins, cfg.hidden, cfg.layers, zero_init=True)
+        return Head(cfg.bins, cfg.hidden, cfg.layers, zero_init=True, dtype=compute)
 
     def fresh_memory(spec: ArenaSpec, num_arenas: int) -> Memory:
         model = world_model(spec)

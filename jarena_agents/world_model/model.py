@@ -66,6 +66,21 @@ class WorldModelConfig:
     # larger iterations, a speed knob where each iteration's launch costs more than its work (small batches on a
     # GPU); the same computation, up to floating-point rounding
     scan_unroll: int = at_least(1, default=1)
+    # dtype of the networks' matrix products and activations: "float32", or "bfloat16" as DreamerV3 trains (its
+    # precision 16): parameters, LayerNorm statistics, the latent state, distributions and losses stay float32.
+    # A speed knob for GPUs with bfloat16 units (slower on most CPUs)
+    compute_dtype: str = "float32"
+
+
+COMPUTE_DTYPES = ("float32", "bfloat16")
+
+
+def compute_dtype(config: WorldModelConfig, agent: str = "world model"):
+    """``config.compute_dtype`` as a jnp dtype; a ConfigError naming the choices for any other value."""
+    if config.compute_dtype not in COMPUTE_DTYPES:
+        raise ConfigError(f"config key 'compute_dtype' of agent {agent!r} must be one of {list(COMPUTE_DTYPES)}, "
+                          f"got {config.compute_dtype!r}")
+    return jnp.dtype(config.compute_dtype)
 
 
 @struct.dataclass
@@ -113,26 +128,28 @@ class WorldModel:
     @property
     def rssm(self) -> RSSMCell:
         c = self.config
-        return RSSMCell(c.deter, c.stoch, c.classes, c.hidden, c.unimix)
+        return RSSMCell(c.deter, c.stoch, c.classes, c.hidden, c.unimix, compute_dtype(c))
 
     @property
     def encoder(self) -> Encoder:
         c = self.config
-        return Encoder(c.hidden, c.layers, c.cnn_depth, c.cnn_layers)
+        return Encoder(c.hidden, c.layers, c.cnn_depth, c.cnn_layers, compute_dtype(c))
 
     @property
     def decoder(self) -> Decoder:
         c = self.config
         shapes = tuple((k, tuple(self.spec.observation[k].shape)) for k in self.images)
-        return Decoder(self.vector_size, shapes, c.hidden, c.layers, c.cnn_depth, c.cnn_layers)
+        return Decoder(self.vector_size, shapes, c.hidden, c.layers, c.cnn_depth, c.cnn_layers, compute_dtype(c))
 
     @property
     def reward_head(self) -> Head:
-        return Head(self.config.bins, self.config.hidden, self.config.layers, zero_init=True)
+        c = self.config
+        return Head(c.bins, c.hidden, c.layers, zero_init=True, dtype=compute_dtype(c))
 
     @property
     def continue_head(self) -> Head:
-        return Head(1, self.config.hidden, self.config.layers)
+        c = self.config
+        return Head(1, c.hidden, c.layers, dtype=compute_dtype(c))
 
     @property
     def centres(self) -> jax.Array:
@@ -149,6 +166,7 @@ def make_world_model(spec: ArenaSpec, config: WorldModelConfig | None = None) ->
     """The world model of arenas of ``spec`` (observations: a vector and any uint8 (H, W, C) images, whose
     sides must divide by ``2^cnn_layers``)."""
     config = config or WorldModelConfig()
+    compute_dtype(config)
     images = networks.image_keys(spec)
     for key in images:
         height, width, _ = spec.observation[key].shape

@@ -3,11 +3,16 @@ heads (DreamerV3's layout: LayerNorm and SiLU after every hidden layer, zero-ini
 
 Shapes: ``deter`` D, ``stoch`` S categorical variables of ``classes`` K; features ``D + S K``. Every module
 takes any leading batch axes.
+
+``dtype`` is the compute dtype of the matrix products and activations (``jnp.bfloat16`` as DreamerV3 trains);
+parameters stay float32, LayerNorm statistics are computed in float32, and every module's outputs (the GRU's state,
+logits, embeddings, reconstructions) are float32.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import flax.linen as nn
 import jax
@@ -30,13 +35,14 @@ class Latent:
 
 
 class NormDense(nn.Module):
-    """Dense, LayerNorm, SiLU."""
+    """Dense, LayerNorm, SiLU, in ``dtype``."""
 
     features: int
+    dtype: Any = jnp.float32
 
     @nn.compact
     def __call__(self, x):
-        return nn.silu(nn.LayerNorm()(nn.Dense(self.features, use_bias=False)(x)))
+        return nn.silu(nn.LayerNorm(dtype=self.dtype)(nn.Dense(self.features, use_bias=False, dtype=self.dtype)(x)))
 
 
 class NormGRU(nn.Module):
@@ -44,14 +50,16 @@ class NormGRU(nn.Module):
     gates, LayerNorm over them, ``update = sigmoid(u - 1)`` (biased towards keeping ``h``)."""
 
     features: int
+    dtype: Any = jnp.float32
 
     @nn.compact
     def __call__(self, inputs, h):
-        parts = nn.LayerNorm()(nn.Dense(3 * self.features, use_bias=False)(jnp.concatenate([inputs, h], -1)))
+        gates = nn.Dense(3 * self.features, use_bias=False, dtype=self.dtype)(jnp.concatenate([inputs, h], -1))
+        parts = nn.LayerNorm(dtype=self.dtype)(gates)
         reset, candidate, update = jnp.split(parts, 3, axis=-1)
         candidate = jnp.tanh(jax.nn.sigmoid(reset) * candidate)
         update = jax.nn.sigmoid(update - 1.0)
-        return update * candidate + (1 - update) * h
+        return (update * candidate + (1 - update) * h).astype(h.dtype)
 
 
 class RSSMCell(nn.Module):
@@ -69,17 +77,19 @@ class RSSMCell(nn.Module):
     classes: int
     hidden: int
     unimix: float = dist.UNIMIX
+    dtype: Any = jnp.float32
 
     def setup(self):
-        self.gru_input = NormDense(self.hidden)
-        self.gru = NormGRU(self.deter)
-        self.prior_hidden = NormDense(self.hidden)
-        self.prior_logits = nn.Dense(self.stoch * self.classes)
-        self.posterior_hidden = NormDense(self.hidden)
-        self.posterior_logits = nn.Dense(self.stoch * self.classes)
+        self.gru_input = NormDense(self.hidden, self.dtype)
+        self.gru = NormGRU(self.deter, self.dtype)
+        self.prior_hidden = NormDense(self.hidden, self.dtype)
+        self.prior_logits = nn.Dense(self.stoch * self.classes, dtype=self.dtype)
+        self.posterior_hidden = NormDense(self.hidden, self.dtype)
+        self.posterior_logits = nn.Dense(self.stoch * self.classes, dtype=self.dtype)
 
     def _probs(self, logits):
-        return dist.categorical_probs(logits.reshape(logits.shape[:-1] + (self.stoch, self.classes)), self.unimix)
+        logits = logits.astype(jnp.float32).reshape(logits.shape[:-1] + (self.stoch, self.classes))
+        return dist.categorical_probs(logits, self.unimix)
 
     def _draw(self, probs, key):
         return dist.mode_one_hot(probs) if key is None else dist.sample_one_hot(key, probs)
@@ -112,9 +122,9 @@ class RSSMCell(nn.Module):
         return self.obs_step(latent, action, embed, key)
 
 
-def _conv_norm(x, features, name):
-    x = nn.Conv(features, (4, 4), (2, 2), padding="SAME", use_bias=False, name=name)(x)
-    return nn.silu(nn.LayerNorm(name=f"{name}_norm")(x))
+def _conv_norm(x, features, name, dtype):
+    x = nn.Conv(features, (4, 4), (2, 2), padding="SAME", use_bias=False, dtype=dtype, name=name)(x)
+    return nn.silu(nn.LayerNorm(dtype=dtype, name=f"{name}_norm")(x))
 
 
 class Encoder(nn.Module):
@@ -126,6 +136,7 @@ class Encoder(nn.Module):
     layers: int
     cnn_depth: int
     cnn_layers: int
+    dtype: Any = jnp.float32
 
     @nn.compact
     def __call__(self, vector, images: dict):
@@ -133,15 +144,15 @@ class Encoder(nn.Module):
         if vector.shape[-1]:
             x = dist.symlog(vector)
             for i in range(self.layers):
-                x = NormDense(self.hidden, name=f"vector_{i}")(x)
-            parts.append(x)
+                x = NormDense(self.hidden, self.dtype, name=f"vector_{i}")(x)
+            parts.append(x.astype(jnp.float32))
         for key in sorted(images):
             x = images[key]
             batch = x.shape[:-3]
             x = x.reshape((-1,) + x.shape[-3:]).astype(jnp.float32) / 255.0 - 0.5
             for i in range(self.cnn_layers):
-                x = _conv_norm(x, self.cnn_depth * 2 ** i, f"{key}_conv{i}")
-            parts.append(x.reshape(batch + (-1,)))
+                x = _conv_norm(x, self.cnn_depth * 2 ** i, f"{key}_conv{i}", self.dtype)
+            parts.append(x.reshape(batch + (-1,)).astype(jnp.float32))
         return jnp.concatenate(parts, axis=-1)
 
 
@@ -155,6 +166,7 @@ class Decoder(nn.Module):
     layers: int
     cnn_depth: int
     cnn_layers: int
+    dtype: Any = jnp.float32
 
     @nn.compact
     def __call__(self, features):
@@ -162,22 +174,22 @@ class Decoder(nn.Module):
         if self.vector_size:
             x = features
             for i in range(self.layers):
-                x = NormDense(self.hidden, name=f"vector_{i}")(x)
-            vector = nn.Dense(self.vector_size, name="vector_out")(x)
+                x = NormDense(self.hidden, self.dtype, name=f"vector_{i}")(x)
+            vector = nn.Dense(self.vector_size, dtype=self.dtype, name="vector_out")(x).astype(jnp.float32)
         images = {}
         n = self.cnn_layers
         for key, (height, width, channels) in self.image_shapes:
             batch = features.shape[:-1]
             depth = self.cnn_depth * 2 ** (n - 1)
-            x = nn.Dense((height >> n) * (width >> n) * depth, name=f"{key}_in")(features)
+            x = nn.Dense((height >> n) * (width >> n) * depth, dtype=self.dtype, name=f"{key}_in")(features)
             x = x.reshape((-1, height >> n, width >> n, depth))
             for i in reversed(range(n)):
                 last = i == 0
                 x = nn.ConvTranspose(channels if last else self.cnn_depth * 2 ** (i - 1), (4, 4), (2, 2),
-                                     padding="SAME", use_bias=last, name=f"{key}_deconv{i}")(x)
+                                     padding="SAME", use_bias=last, dtype=self.dtype, name=f"{key}_deconv{i}")(x)
                 if not last:
-                    x = nn.silu(nn.LayerNorm(name=f"{key}_deconv{i}_norm")(x))
-            images[key] = x.reshape(batch + (height, width, channels))
+                    x = nn.silu(nn.LayerNorm(dtype=self.dtype, name=f"{key}_deconv{i}_norm")(x))
+            images[key] = x.reshape(batch + (height, width, channels)).astype(jnp.float32)
         return vector, images
 
 
@@ -189,10 +201,11 @@ class Head(nn.Module):
     hidden: int
     layers: int
     zero_init: bool = False
+    dtype: Any = jnp.float32
 
     @nn.compact
     def __call__(self, x):
         for i in range(self.layers):
-            x = NormDense(self.hidden, name=f"hidden_{i}")(x)
+            x = NormDense(self.hidden, self.dtype, name=f"hidden_{i}")(x)
         init = nn.initializers.zeros if self.zero_init else nn.initializers.lecun_normal()
-        return nn.Dense(self.outputs, kernel_init=init, name="out")(x)
+        return nn.Dense(self.outputs, kernel_init=init, dtype=self.dtype, name="out")(x).astype(jnp.float32)

@@ -90,6 +90,7 @@ def check_online_config(cfg: OnlineConfig, agent: str) -> OnlineConfig:
     """``cfg`` checked, its ``buffer_size`` rounded down to a multiple of ``num_arenas`` (with a warning): each
     arena keeps ``buffer_size // num_arenas`` steps. Raises ``ValueError`` naming what to change."""
     cfg = rounded_buffer(cfg, agent)
+    wm.compute_dtype(cfg, agent)
     if cfg.replay_ratio is not None and cfg.gradient_steps < 1:
         low = cfg.batch_size * cfg.sequence_length / (2 * cfg.decisions_per_update)
         raise ValueError(f"{agent}: replay_ratio={cfg.replay_ratio} gives less than one gradient step per update "

@@ -177,14 +177,16 @@ def test_unrolled_scans_compute_the_same_loss_and_latents(pendulum):
         np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)
 
 
-def test_images_are_encoded_and_decoded():
+@pytest.mark.parametrize("dtype", ["float32", "bfloat16"])
+def test_images_are_encoded_and_decoded(dtype):
     arena = jarena.build_arena("dmc|domain:cartpole,task:swingup,pixels:16,state:false")
-    config = wm.WorldModelConfig(deter=8, stoch=2, classes=2, hidden=8, layers=1, cnn_depth=2, cnn_layers=2, bins=5)
+    config = wm.WorldModelConfig(deter=8, stoch=2, classes=2, hidden=8, layers=1, cnn_depth=2, cnn_layers=2, bins=5,
+                                 compute_dtype=dtype)
     model = wm.make_world_model(arena.spec, config)
     assert model.images == ("pixels",) and model.vector_size == 0
     vector, images = jax.jit(lambda key: wm.decode(model, wm.init_params(model, key), model.initial((3,))))(
         jax.random.key(0))
-    assert vector is None and images["pixels"].shape == (3, 16, 16, 3)
+    assert vector is None and images["pixels"].shape == (3, 16, 16, 3) and images["pixels"].dtype == jnp.float32
     with pytest.raises(ConfigError, match="sides must divide by 32"):
         wm.make_world_model(arena.spec, wm.WorldModelConfig(cnn_layers=5))
 
@@ -286,3 +288,41 @@ def test_flat_global_norm_clip_equals_optax_per_leaf_clip():
         for a, b in zip(jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(theirs)):
             np.testing.assert_allclose(a, b, rtol=1e-6)
         assert float(optax.global_norm(ours)) == pytest.approx(min(max_norm, float(optax.global_norm(tree))), rel=1e-6)
+
+
+def test_bfloat16_compute_keeps_float32_params_state_and_losses(pendulum):
+    """compute_dtype bfloat16 (DreamerV3's precision): the same float32 parameters, a float32 latent state, and
+    losses within bfloat16's rounding of float32's on the same inputs; a gradient step keeps everything finite."""
+    experience = jax.tree_util.tree_map(lambda x: jnp.swapaxes(x, 0, 1),
+                                        random_transitions(pendulum, jax.random.key(1), 4, 8))
+    results = {}
+    for dtype in ("float32", "bfloat16"):
+        model = wm.make_world_model(pendulum.spec, dataclasses.replace(SMALL, compute_dtype=dtype))
+        params = init_params(model, jax.random.key(0))
+        optimizer = wm.model_optimizer(model.config)
+
+        @jax.jit
+        def step(params, experience, key, model=model, optimizer=optimizer):
+            seq = wm.sequences_from_windows(pendulum.spec, experience)
+            total, (metrics, latents) = wm.loss(model, params, seq, key)
+            new, _, after, _ = wm.gradient_step(model, optimizer, params, optimizer.init(params), seq, key)
+            return total, metrics, latents, new, after
+
+        results[dtype] = (params, *step(params, experience, jax.random.key(2)))
+    (p32, total32, m32, lat32, _, _), (p16, total16, m16, lat16, new16, after16) = results.values()
+    chex_equal = jax.tree_util.tree_map(lambda a, b: bool(jnp.array_equal(a, b)), p32, p16)
+    assert all(jax.tree_util.tree_leaves(chex_equal))  # identical float32 initial parameters
+    assert lat16.deter.dtype == jnp.float32 and lat16.stoch.dtype == jnp.float32
+    np.testing.assert_allclose(m16["reward_loss"], np.log(255), rtol=1e-5)  # zero-initialised head, any dtype
+    np.testing.assert_allclose(m16["observation_loss"], m32["observation_loss"], rtol=0.05)
+    np.testing.assert_allclose(total16, total32, rtol=0.05)
+    assert all(leaf.dtype == jnp.float32 and bool(jnp.all(jnp.isfinite(leaf)))
+               for leaf in jax.tree_util.tree_leaves(new16))
+    assert np.isfinite(float(after16["model_loss"])) and float(after16["grad_norm"]) > 0
+
+
+def test_an_unknown_compute_dtype_is_refused_naming_the_choices(pendulum):
+    with pytest.raises(ConfigError, match=r"compute_dtype.*\['float32', 'bfloat16'\].*'float16'"):
+        wm.make_world_model(pendulum.spec, dataclasses.replace(SMALL, compute_dtype="float16"))
+    with pytest.raises(ConfigError, match="compute_dtype"):
+        jarena_agents.build_agent("dreamer", {"compute_dtype": "half"})
