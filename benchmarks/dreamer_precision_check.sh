@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Dreamer's update time by precision and batch on one GPU, each variant timed alone: all variants first compile
+# side by side into the persistent compilation cache (compilation runs on the CPU cores), then each is timed in
+# turn with nothing else on the GPU (a GPU time-slices between processes, so side-by-side timings mean nothing).
+# One JSON line per variant in RESULTS_DIR/dreamer_precision.jsonl (default /tmp/res).
+# Usage, on the GPU machine from the project root after `source .gpu/setup.sh`:
+#   bash benchmarks/dreamer_precision_check.sh ["ARENA"]
+set -u
+cd "$(dirname "$0")"
+D=${1:-"dmc|domain:walker,task:walk"}
+R=${RESULTS_DIR:-/tmp/res}; mkdir -p "$R"
+export JAX_COMPILATION_CACHE_DIR=${JAX_COMPILATION_CACHE_DIR:-$R/jax-cache}
+VARIANTS=(
+  ""
+  "--set compute_dtype=bfloat16"
+  "--set num_arenas=64 --set batch_size=64"
+  "--set num_arenas=64 --set batch_size=64 --set compute_dtype=bfloat16"
+  "--set learning_starts=100000000"
+)
+for v in "${VARIANTS[@]}"; do
+  # shellcheck disable=SC2086  # the settings split into words on purpose
+  XLA_PYTHON_CLIENT_PREALLOCATE=false timeout 900 python dreamer_step.py "$D" --compile-only $v \
+    >> "$R/dreamer_precision_compile.jsonl" 2>> "$R/dreamer_precision.err" &
+done
+wait
+for v in "${VARIANTS[@]}"; do
+  # shellcheck disable=SC2086
+  timeout 600 python dreamer_step.py "$D" $v >> "$R/dreamer_precision.jsonl" 2>> "$R/dreamer_precision.err"
+done
+cat "$R/dreamer_precision.jsonl"
