@@ -220,6 +220,7 @@ def _cmd_train(args) -> int:
 
     say = print if distributed.is_main_process() else (lambda *a, **k: None)
     arena = jarena.build_arena(args.arena)
+    eval_arena = jarena.build_arena(args.eval_arena) if args.eval_arena else None
     config = _agent_config(args, arena)
     if args.steps is not None:
         config["total_steps"] = args.steps
@@ -230,11 +231,12 @@ def _cmd_train(args) -> int:
     mesh = distributed.mesh(args.devices)
     where = (f"{mesh.devices.size} {jax.default_backend()} device(s)" if jax.process_count() == 1 else
              f"{mesh.devices.size} {jax.default_backend()} devices of {jax.process_count()} processes")
-    say(f"training {agent.name!r} on {args.arena!r} for {steps} {unit} on {where} (seed {args.seed})", flush=True)
+    say(f"training {agent.name!r} on {args.arena!r} for {steps} {unit} on {where} (seed {args.seed})"
+        + (f"; validating and evaluating on {args.eval_arena!r}" if eval_arena is not None else ""), flush=True)
     result = train_and_evaluate(agent, arena, jax.random.key(args.seed), run_dir=args.run_dir,
                                 progress=not args.no_progress, select=args.select,
                                 eval_videos=_count(args.videos, "--videos"), devices=args.devices,
-                                **_validation_schedule(args.validations))
+                                eval_arena=eval_arena, **_validation_schedule(args.validations))
     last = result.history[-1]
     say(f"trained {last['env_steps']} steps in {last['seconds']:.1f} s "
           f"({last['env_steps'] / max(last['seconds'], 1e-9):.3g} steps/s, compile included)")
@@ -373,6 +375,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--validations", type=int, default=10, metavar="N",
                    help="validate at most N times in the run, evenly spaced, the last after the final update "
                         "(0: never; each validation runs the arena's validation episodes to their end)")
+    p.add_argument("--eval-arena", default=None, metavar="ARENA",
+                   help="validate and evaluate on this arena's episodes instead (the same observation and action "
+                        "specs): train on cheaper physics, e.g. \"dmc|domain:walker,task:walk,iterations:2\", and "
+                        "report the return on the reference, \"dmc|domain:walker,task:walk\"")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_launch_flags(p, "devices to train on: 'all', or a count (default: all in a multi-process run, else 1)")
     p.set_defaults(fn=_cmd_train)

@@ -139,7 +139,7 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
                        validations: int = 10, select: str = "best", checkpoint_every: int | None = None,
                        run_dir: str | Path | None = None, progress: bool = True,
                        stop_after_chunks: int | None = None, eval_videos: int = 2,
-                       devices: int | str | None = None) -> TrainResult:
+                       devices: int | str | None = None, eval_arena: Arena | None = None) -> TrainResult:
     """Trains ``agent`` on ``arena``, validating periodically, and evaluates the selected policy on the eval
     episodes.
 
@@ -176,8 +176,13 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
         the order of float sums). In a multi-process run (:func:`jarena.distributed.initialize`) every
         process calls this alike; only process 0 writes to ``run_dir`` and shows progress, and checkpoints
         are written and restored by all.
+      eval_arena: validate and evaluate on this arena's ``val`` and ``eval`` episodes instead of ``arena``'s:
+        train on cheaper physics (e.g. the Control Suite with fewer solver iterations) and report the return on
+        the reference physics. Its observation and action specs must be ``arena``'s (else a ``ValueError``).
     """
     _check_trainable(agent)
+    eval_arena = arena if eval_arena is None else eval_arena
+    _check_same_specs(arena, eval_arena)
     rule = selection(select)
     for name, value in (("total_steps", total_steps), ("chunk_updates", chunk_updates),
                         ("stop_after_chunks", stop_after_chunks), ("validations", validations)):
@@ -198,7 +203,9 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
     if log_path is not None:
         log_path.mkdir(parents=True, exist_ok=True)
         (log_path / "config.json").write_text(json.dumps(
-            {"agent": agent.name, "arena": arena.build_string or arena.name, "config": agent.config,
+            {"agent": agent.name, "arena": arena.build_string or arena.name,
+             **({"eval_arena": eval_arena.build_string or eval_arena.name} if eval_arena is not arena else {}),
+             "config": agent.config,
              "total_steps": total_steps, "select": select, "jax": jax.__version__,
              "device": str(jax.devices()[0]), "devices": int(mesh.devices.size),
              "processes": jax.process_count()}, indent=2, default=str))
@@ -211,7 +218,7 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
         f"start every process again with the same command: the run resumes from its last checkpoint in "
         f"{checkpointer.directory}" if checkpointer is not None else
         "start the run again (it has no checkpoints: give it a run directory to keep them)")
-    keeper = _BestPolicy(agent, arena, rule, run_path / BEST_POLICY_DIR if checkpointer is not None else None)
+    keeper = _BestPolicy(agent, eval_arena, rule, run_path / BEST_POLICY_DIR if checkpointer is not None else None)
     first_chunk = 0
     if checkpointer is not None and checkpointer.latest_step() is not None:
         first_chunk = checkpointer.latest_step()
@@ -252,7 +259,7 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
             if writer is not None:
                 writer.log("train", row)
             if validate_every and ((index + 1) % validate_every == 0 or index + 1 == num_chunks):
-                result = validate(agent, arena, jax.random.key(index),
+                result = validate(agent, eval_arena, jax.random.key(index),
                                   agent_state=_local_policy(agent.policy(train_state, arena.spec, True), mesh),
                                   devices=devices)
                 validations_done.append({"update": done_updates, "env_steps": row["env_steps"], **result.summary()})
@@ -271,10 +278,23 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
         close()
     policy, selected = keeper.choice(train_state, history[-1] if history else None,
                                      validations_done[-1] if validations_done else None)
-    evaluation = _evaluate_and_write(agent, arena, _local_policy(policy, mesh), selected, run_path, log_path,
+    evaluation = _evaluate_and_write(agent, eval_arena, _local_policy(policy, mesh), selected, run_path, log_path,
                                      eval_videos, history, validations_done, devices)
     return TrainResult(train_state=train_state, history=history, validations=validations_done,
                        evaluation=evaluation, policy=policy, selected=selected)
+
+
+def _check_same_specs(arena: Arena, eval_arena: Arena) -> None:
+    """Raises ``ValueError`` naming what differs when a policy trained on ``arena`` cannot act in ``eval_arena``."""
+    if eval_arena is arena:
+        return
+    for what in ("observation", "action", "goal_dim"):
+        trained, evaluated = getattr(arena.spec, what), getattr(eval_arena.spec, what)
+        if trained != evaluated:
+            raise ValueError(f"eval_arena {eval_arena.build_string or eval_arena.name!r} has another {what} spec than "
+                             f"the training arena {arena.build_string or arena.name!r}: {evaluated!r} against "
+                             f"{trained!r}; a policy trained on one must be able to act in the other (the same "
+                             f"domain and task, other physics options)")
 
 
 def _compiled_training(agent, arena: Arena, key: jax.Array, mesh):

@@ -94,6 +94,32 @@ def test_without_validation_the_final_policy_is_evaluated(cartpole):
     assert result.evaluation.summary()["return_mean"] == 500.0
 
 
+def test_an_eval_arena_validates_and_evaluates_in_place_of_the_training_arena(cartpole, tmp_path):
+    """Train on one arena, report on another of the same specs (as a run on cheaper physics reports the reference
+    physics' return): the balancing policy scores the eval arena's 100-step limit, not the training arena's 500."""
+    short = jarena.build_arena(CARTPOLE + ",time_limit:100")
+    result = train_and_evaluate(scripted_trainer((4, 6)), cartpole, jax.random.key(0), progress=False,
+                                run_dir=tmp_path, eval_videos=0, eval_arena=short)
+    assert [v["return_mean"] for v in result.validations][1:3] == [100.0, 100.0]
+    assert result.selected["update"] == 6 and result.evaluation.summary()["return_mean"] == 100.0
+    assert result.evaluation.summary()["episodes"] == short.num_eval_episodes
+    assert json.loads((tmp_path / "config.json").read_text())["eval_arena"] == CARTPOLE + ",time_limit:100"
+    with pytest.raises(ValueError, match=r"another observation spec .*same domain and task"):
+        train_and_evaluate(scripted_trainer(()), cartpole, jax.random.key(0), progress=False,
+                           eval_arena=jarena.build_arena("classic|domain:pendulum"))
+
+
+def test_the_command_line_trains_on_one_arena_and_evaluates_on_another(tmp_path, capsys):
+    code = main(["train", "ppo", CARTPOLE, "--eval-arena", CARTPOLE + ",time_limit:50", "--steps", "2048",
+                 "--set", "num_arenas=8", "--set", "rollout_length=64", "--validations", "1", "--videos", "0",
+                 "--no-progress", "--run-dir", str(tmp_path)])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "validating and evaluating on 'classic|domain:cartpole,time_limit:50'" in out
+    evaluation = json.loads((tmp_path / "evaluation.json").read_text())
+    assert max(e["length"] for e in evaluation["episodes"]) <= 50  # the eval arena's episodes, not the 500-step ones
+
+
 def test_the_cartpole_main_job_validates_at_least_ten_times(cartpole):
     agent = jarena_agents.build_agent("ppo", jarena.retrieve_config("ppo", cartpole))
     num_chunks, _, validate_every = training_schedule(agent.settings, None, None, None, 10)
