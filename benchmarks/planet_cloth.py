@@ -40,6 +40,7 @@ import jarena
 import jarena_agents
 from jarena.data import TrajectoryDataset, configs_for
 from jarena.runners.evaluate import evaluate
+from jarena.platform import enable_compilation_cache
 from jarena.training import train_and_evaluate
 
 
@@ -119,6 +120,8 @@ def main() -> None:
     parser.add_argument("--devices", default=None, help="train data-parallel on N devices, or 'all'")
     parser.add_argument("--run-dir", default=None, help="keep the dataset, logs and results here")
     args = parser.parse_args()
+    cache = enable_compilation_cache()  # as the jarena command: a rerun loads its programs instead of compiling
+    print(f"compilation cache: {cache or 'off'}", flush=True)
     devices = args.devices if args.devices in (None, "all") else int(args.devices)
     print(f"{jax.devices()[0].device_kind}, jax {jax.__version__}, Python {platform.python_version()}", flush=True)
     configs = {"planet": overrides(args.set_planet), "bc": overrides(args.set_bc)}

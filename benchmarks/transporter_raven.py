@@ -29,6 +29,7 @@ import yaml
 import jarena
 import jarena_agents
 from jarena.data import TrajectoryDataset, configs_for
+from jarena.platform import enable_compilation_cache
 from jarena.training import train_and_evaluate
 
 
@@ -45,6 +46,8 @@ def main() -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key")
     parser.add_argument("--run-dir", default=None, help="keep the dataset, logs and results here")
     args = parser.parse_args()
+    cache = enable_compilation_cache()  # as the jarena command: a rerun loads its programs instead of compiling
+    print(f"compilation cache: {cache or 'off'}", flush=True)
     devices = args.devices if args.devices in (None, "all") else int(args.devices)
     overrides = {k: yaml.safe_load(v) for k, v in (item.split("=", 1) for item in args.set)}
     print(f"devices: {jax.devices()}", flush=True)

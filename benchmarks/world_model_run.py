@@ -19,6 +19,7 @@ import jax
 import jarena
 import jarena_agents
 from jarena.cli import parse_override, select_arg
+from jarena.platform import enable_compilation_cache
 from jarena.training import train_and_evaluate
 
 
@@ -36,6 +37,8 @@ def main() -> None:
     parser.add_argument("--run-dir", required=True)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
+    cache = enable_compilation_cache()  # as the jarena command: a rerun loads its programs instead of compiling
+    print(f"compilation cache: {cache or 'off'}", flush=True)
 
     start = time.perf_counter()
     arena = jarena.build_arena(args.arena)
