@@ -33,17 +33,18 @@ from jarena.core.tool import ActionTool
 from jarena.core.types import ArenaParams, ArenaState, Final, Info, Outcome, Transition
 from jarena.data import TrajectoryDataset, collect, make_buffer
 from jarena.runners import EvalResult, Recording, Trajectory, evaluate, perform_parallel, record_video, run, validate
-from jarena.training import TrainResult, train_and_evaluate
+from jarena.training import SeedsResult, TrainResult, train_and_evaluate, train_seeds
 
 __version__ = "0.1.0"
 
 __all__ = [
     "ActionTool", "Agent", "Arena", "ArenaParams", "ArenaSpec", "ArenaState", "ArenaStringError", "Box",
-    "Discrete", "Dynamics", "EvalResult", "Final", "Recording", "Info", "Outcome", "Sensor", "SensorMemory",
-    "SpecError", "Task",
+    "Discrete", "Dynamics", "EvalResult", "Final", "Recording", "Info", "Outcome", "SeedsResult", "Sensor",
+    "SensorMemory", "SpecError", "Task",
     "TrainResult", "Trajectory", "TrajectoryDataset", "Transition", "auto_reset", "batch_reset", "batch_step",
     "build_arena", "chain", "collect", "data", "distributed", "evaluate", "list_arenas", "make_buffer",
     "parse_arena_string", "perform_parallel", "record_video", "register_arena_builder", "register_task",
     "register_tool", "retrieve_config",
-    "run", "sensors", "spec", "tasks", "testing", "tools", "train_and_evaluate", "validate",
+    "run", "sensors", "spec", "tasks", "testing", "tools", "train_and_evaluate", "train_seeds",
+    "validate",
 ]

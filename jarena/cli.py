@@ -231,8 +231,13 @@ def _cmd_train(args) -> int:
     mesh = distributed.mesh(args.devices)
     where = (f"{mesh.devices.size} {jax.default_backend()} device(s)" if jax.process_count() == 1 else
              f"{mesh.devices.size} {jax.default_backend()} devices of {jax.process_count()} processes")
-    say(f"training {agent.name!r} on {args.arena!r} for {steps} {unit} on {where} (seed {args.seed})"
+    seeds = f"seed {args.seed}" if args.seeds == 1 else f"seeds {args.seed} to {args.seed + args.seeds - 1}, at once"
+    say(f"training {agent.name!r} on {args.arena!r} for {steps} {unit} on {where} ({seeds})"
         + (f"; validating and evaluating on {args.eval_arena!r}" if eval_arena is not None else ""), flush=True)
+    if args.seeds < 1:
+        raise ValueError(f"--seeds must be 1 or more, got {args.seeds}")
+    if args.seeds > 1:
+        return _train_seeds(args, agent, arena, eval_arena, say)
     result = train_and_evaluate(agent, arena, jax.random.key(args.seed), run_dir=args.run_dir,
                                 progress=not args.no_progress, select=args.select,
                                 eval_videos=_count(args.videos, "--videos"), devices=args.devices,
@@ -244,6 +249,27 @@ def _cmd_train(args) -> int:
     if args.run_dir:
         say(f"run directory: {args.run_dir} (config, train.csv, validation.csv, evaluation.json, "
               "learning_curve.png" + (", videos/" if Path(args.run_dir, "videos").is_dir() else "") + ")")
+    return 0
+
+
+def _train_seeds(args, agent, arena, eval_arena, say) -> int:
+    """``jarena train --seeds N``: seeds ``--seed`` .. ``--seed + N - 1`` in one compiled program."""
+    import jax
+
+    from jarena.training import train_seeds
+
+    if jax.process_count() > 1 or (args.devices not in (None, 1, "1")):
+        raise ValueError("--seeds trains its seeds in one program on one device; leave out --devices and the launch "
+                         "flags (or train each seed as its own run)")
+    seeds = range(args.seed, args.seed + args.seeds)
+    result = train_seeds(agent, arena, seeds, run_dir=args.run_dir, progress=not args.no_progress,
+                         eval_arena=eval_arena)
+    last = result.histories[0][-1]
+    say(f"trained {len(seeds)} seeds x {last['env_steps']} steps in {last['seconds']:.1f} s, compile included; "
+        f"each seed's final policy on the eval episodes:")
+    say(result.table())
+    if args.run_dir:
+        say(f"run directory: {args.run_dir} (config.json, seeds.csv, seed_<s>/train.csv and evaluation.json)")
     return 0
 
 
@@ -375,6 +401,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--validations", type=int, default=10, metavar="N",
                    help="validate at most N times in the run, evenly spaced, the last after the final update "
                         "(0: never; each validation runs the arena's validation episodes to their end)")
+    p.add_argument("--seeds", type=int, default=1, metavar="N",
+                   help="train N seeds (--seed .. --seed + N - 1) at once in one compiled program, about the cost of "
+                        "one where one run leaves the device idle, and evaluate each seed's final policy (no "
+                        "validations, selection or checkpoints)")
     p.add_argument("--eval-arena", default=None, metavar="ARENA",
                    help="validate and evaluate on this arena's episodes instead (the same observation and action "
                         "specs): train on cheaper physics, e.g. \"dmc|domain:walker,task:walk,iterations:2\", and "

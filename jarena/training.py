@@ -284,6 +284,131 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
                        evaluation=evaluation, policy=policy, selected=selected)
 
 
+@dataclasses.dataclass(frozen=True)
+class SeedsResult:
+    """What :func:`train_seeds` returns: ``train_state`` (leaves with a leading seed axis (S, ...)), ``histories``
+    (per seed, one dict per chunk, as :attr:`TrainResult.history`), ``evaluations`` (per seed, its final policy on
+    the eval episodes) and the seeds' ``keys``."""
+
+    train_state: Any
+    histories: list[list[dict[str, float]]]
+    evaluations: list[EvalResult]
+    keys: list[int]
+
+    def summary(self) -> dict[str, float]:
+        """Over the seeds: ``seeds``, and the mean and standard deviation (ddof 0) of each seed's evaluation
+        summary value (``return_mean_mean``, ``return_mean_std``, ``success_rate_mean``, ...)."""
+        rows = [e.summary() for e in self.evaluations]
+        out = {"seeds": float(len(rows))}
+        for name in rows[0]:
+            values = np.asarray([r[name] for r in rows], np.float64)
+            out[f"{name}_mean"], out[f"{name}_std"] = float(values.mean()), float(values.std())
+        return out
+
+    def table(self) -> str:
+        """One line per seed (eval return mean +- std over its episodes, success) and the mean over seeds."""
+        lines = ["seed | eval return (mean +- std over episodes) | success"]
+        for seed, evaluation in zip(self.keys, self.evaluations, strict=True):
+            s = evaluation.summary()
+            lines.append(f"{seed} | {s['return_mean']:.1f} +- {s['return_std']:.1f} | {s.get('success_rate', 0):.0%}")
+        total = self.summary()
+        lines.append(f"all {len(self.keys)} | {total['return_mean_mean']:.1f} +- {total['return_mean_std']:.1f} "
+                     f"(over seeds) | {total.get('success_rate_mean', 0):.0%}")
+        return "\n".join(lines)
+
+
+def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, chunk_updates: int | None = None,
+                run_dir: str | Path | None = None, progress: bool = True,
+                eval_arena: Arena | None = None) -> SeedsResult:
+    """Trains ``agent`` once per seed, all seeds in one compiled program (the agent's training vmapped over a
+    leading seed axis), then evaluates each seed's final policy on the eval episodes.
+
+    Where one run leaves the device idle (a world model's gradient step on a batch of 16 sequences, a
+    collection step of a few arenas), S seeds cost about what one does. Seed ``s``'s run is the run
+    :func:`train_and_evaluate` makes with ``jax.random.key(s)`` (the same updates; batched operations may round
+    differently), without its validations, selection or checkpoints: the last policy of each seed is evaluated,
+    and a stopped call starts again from the beginning.
+
+    Args:
+      agent: a trainable agent.
+      arena: the arena to train on.
+      seeds: the seeds (ints), e.g. ``range(3)``; each seed's key is ``jax.random.key(seed)``.
+      total_steps, chunk_updates: as :func:`train_and_evaluate`'s.
+      run_dir: if given, writes ``config.json``, ``seed_<s>/train.csv`` and ``seed_<s>/evaluation.json`` per seed,
+        and ``seeds.csv`` (one row per seed: its evaluation summary).
+      progress: a progress bar over the environment steps of one seed.
+      eval_arena: evaluate on this arena instead (the same specs), as :func:`train_and_evaluate`'s.
+    """
+    _check_trainable(agent)
+    seeds = [int(s) for s in seeds]
+    if not seeds or len(set(seeds)) != len(seeds):
+        raise ValueError(f"train_seeds needs one or more distinct seeds, got {seeds}")
+    for name, value in (("total_steps", total_steps), ("chunk_updates", chunk_updates)):
+        _positive_or_none(name, value)
+    eval_arena = arena if eval_arena is None else eval_arena
+    _check_same_specs(arena, eval_arena)
+    steps_per_update = agent.settings.steps_per_update
+    total_steps = total_steps or agent.settings.total_steps
+    num_chunks, chunk_updates, _ = training_schedule(agent.settings, total_steps, chunk_updates, 0, 1)
+    num_updates = num_chunks * chunk_updates
+    run_path = Path(run_dir) if run_dir is not None else None
+    if run_path is not None:
+        run_path.mkdir(parents=True, exist_ok=True)
+        (run_path / "config.json").write_text(json.dumps(
+            {"agent": agent.name, "arena": arena.build_string or arena.name, "seeds": seeds,
+             **({"eval_arena": eval_arena.build_string or eval_arena.name} if eval_arena is not arena else {}),
+             "config": agent.config, "total_steps": total_steps, "jax": jax.__version__,
+             "device": str(jax.devices()[0])}, indent=2, default=str))
+    keys = jax.vmap(jax.random.key)(np.asarray(seeds, np.uint32))
+    train_state = jax.jit(jax.vmap(lambda key: agent.init_training(key, arena)))(keys)
+    chunk = jax.jit(lambda ts, n: jax.vmap(lambda one: agent.train(one, arena, n))(ts), static_argnums=1,
+                    donate_argnums=0)
+    histories: list[list[dict[str, float]]] = [[] for _ in seeds]
+    bar = _progress(num_updates * steps_per_update, progress)
+    start, done = time.perf_counter(), 0
+    try:
+        for _ in range(num_chunks):
+            n = min(chunk_updates, num_updates - done)
+            train_state, metrics = chunk(train_state, n)
+            metrics = jax.device_get(metrics)
+            done += n
+            seconds = time.perf_counter() - start
+            for i, history in enumerate(histories):
+                history.append(_history_row({k: v[i] for k, v in metrics.items()}, done, steps_per_update, seconds))
+            bar.update(n * steps_per_update, _mean_row([h[-1] for h in histories]))
+            if run_path is not None:
+                for seed, history in zip(seeds, histories, strict=True):
+                    (run_path / f"seed_{seed}").mkdir(exist_ok=True)
+                    _write_csv(run_path / f"seed_{seed}" / "train.csv", history)
+    finally:
+        bar.close()
+    evaluations = []
+    for i, seed in enumerate(seeds):
+        one = jax.tree_util.tree_map(lambda x: x[i], train_state)
+        evaluation, _ = run_episodes(agent, eval_arena, jax.random.key(0),
+                                     agent_state=agent.policy(one, eval_arena.spec, True))
+        evaluation = dataclasses.replace(evaluation, selected={"select": "last", "update": done,
+                                                               "env_steps": done * steps_per_update})
+        evaluations.append(evaluation)
+        if run_path is not None:
+            (run_path / f"seed_{seed}" / "evaluation.json").write_text(json.dumps(
+                {"summary": evaluation.summary(), "selected": evaluation.selected,
+                 "episodes": evaluation.per_episode()}, indent=2))
+    result = SeedsResult(train_state=train_state, histories=histories, evaluations=evaluations, keys=seeds)
+    if run_path is not None:
+        _write_csv(run_path / "seeds.csv", [{"seed": float(s), **e.summary()} for s, e in zip(seeds, evaluations)])
+    return result
+
+
+def _mean_row(rows: list[dict]) -> dict:
+    """The progress bar's row for several seeds: each value averaged over the seeds whose value is finite."""
+    out = {}
+    for name in rows[0]:
+        values = np.asarray([r.get(name, np.nan) for r in rows], np.float64)
+        out[name] = float(np.mean(values[np.isfinite(values)])) if np.isfinite(values).any() else float("nan")
+    return out
+
+
 def _check_same_specs(arena: Arena, eval_arena: Arena) -> None:
     """Raises ``ValueError`` naming what differs when a policy trained on ``arena`` cannot act in ``eval_arena``."""
     if eval_arena is arena:

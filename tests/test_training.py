@@ -8,10 +8,12 @@ import json
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import pytest
 from flax import struct
 
 import jarena
+import jarena.training
 import jarena_agents
 from jarena.cli import main
 from jarena.core.agent import Agent
@@ -209,3 +211,42 @@ def test_progress_bar_shows_running_return_until_an_episode_ends():
     assert shown_return({"episode_return": 412.34, "running_return": 80.0}) == "ret=412.3"
     assert shown_return({"episode_return": nan, "running_return": 81.26}) == "ret so far=81.3"  # none ended yet
     assert shown_return({"episode_return": nan}) == "ret=nan"  # agents without a running return
+
+
+def test_seeds_train_at_once_each_as_its_own_run(cartpole, tmp_path):
+    """train_seeds vmaps the training over seeds: seed s's curve and final evaluation are the run of
+    train_and_evaluate with key s (final policy, no validation); the seeds differ; the run directory holds each."""
+    agent = jarena_agents.build_agent("ppo", dict(jarena.retrieve_config("ppo", cartpole), num_arenas=8,
+                                                  rollout_length=64))
+    result = jarena.training.train_seeds(agent, cartpole, [0, 3], total_steps=4096, progress=False, run_dir=tmp_path)
+    assert len(result.histories) == 2 and len(result.histories[0]) == len(result.histories[1]) >= 2
+    for index, seed in enumerate((0, 3)):
+        alone = train_and_evaluate(agent, cartpole, jax.random.key(seed), total_steps=4096, progress=False,
+                                   validate_every=0, eval_videos=0)
+        for key in ("episode_return", "value", "entropy"):
+            np.testing.assert_allclose([r[key] for r in result.histories[index]], [r[key] for r in alone.history],
+                                       rtol=1e-4)
+        assert result.evaluations[index].summary()["return_mean"] == pytest.approx(
+            alone.evaluation.summary()["return_mean"], rel=1e-3)
+    assert result.histories[0][0]["episode_return"] != result.histories[1][0]["episode_return"]
+    summary = result.summary()
+    returns = [e.summary()["return_mean"] for e in result.evaluations]
+    assert summary["seeds"] == 2 and summary["return_mean_mean"] == pytest.approx(np.mean(returns))
+    with open(tmp_path / "seeds.csv") as f:
+        assert [float(row["seed"]) for row in csv.DictReader(f)] == [0.0, 3.0]
+    for seed in (0, 3):
+        assert (tmp_path / f"seed_{seed}" / "train.csv").is_file()
+        saved = json.loads((tmp_path / f"seed_{seed}" / "evaluation.json").read_text())
+        assert saved["selected"]["select"] == "last" and len(saved["episodes"]) == cartpole.num_eval_episodes
+    assert json.loads((tmp_path / "config.json").read_text())["seeds"] == [0, 3]
+    with pytest.raises(ValueError, match="distinct seeds"):
+        jarena.training.train_seeds(agent, cartpole, [1, 1], progress=False)
+
+
+def test_the_command_line_trains_several_seeds_at_once(tmp_path, capsys):
+    code = main(["train", "ppo", CARTPOLE, "--seeds", "2", "--seed", "5", "--steps", "2048", "--set", "num_arenas=8",
+                 "--set", "rollout_length=64", "--no-progress", "--run-dir", str(tmp_path)])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "seeds 5 to 6, at once" in out and "all 2 |" in out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["config.json", "seed_5", "seed_6", "seeds.csv"]
