@@ -327,7 +327,8 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
     collection step of a few arenas), S seeds cost about what one does. Seed ``s``'s run is the run
     :func:`train_and_evaluate` makes with ``jax.random.key(s)`` (the same updates; batched operations may round
     differently), without its validations, selection or checkpoints: the last policy of each seed is evaluated,
-    and a stopped call starts again from the beginning.
+    and a stopped call starts again from the beginning. Each seed holds its own training state (replay buffer, or
+    a dataset agent's copy of its data): memory grows with the seeds.
 
     Args:
       agent: a trainable agent.
