@@ -360,7 +360,7 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
              **({"eval_arena": eval_arena.build_string or eval_arena.name} if eval_arena is not arena else {}),
              "config": agent.config, "total_steps": total_steps, "jax": jax.__version__,
              "device": str(jax.devices()[0])}, indent=2, default=str))
-    keys = jax.vmap(jax.random.key)(np.asarray(seeds, np.uint32))
+    keys = jax.random.wrap_key_data(np.stack([np.asarray(jax.random.key_data(jax.random.key(s))) for s in seeds]))
     train_state = jax.jit(jax.vmap(lambda key: agent.init_training(key, arena)))(keys)
     chunk = jax.jit(lambda ts, n: jax.vmap(lambda one: agent.train(one, arena, n))(ts), static_argnums=1,
                     donate_argnums=0)
