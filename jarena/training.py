@@ -334,7 +334,8 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
       agent: a trainable agent.
       arena: the arena to train on.
       seeds: the seeds (ints), e.g. ``range(3)``; each seed's key is ``jax.random.key(seed)``.
-      total_steps, chunk_updates: as :func:`train_and_evaluate`'s.
+      total_steps: environment steps to train each seed for (default: the agent config's ``total_steps``).
+      chunk_updates: updates per compiled chunk (default: about 20 chunks per run).
       run_dir: if given, writes ``config.json``, ``seed_<s>/train.csv`` and ``seed_<s>/evaluation.json`` per seed,
         and ``seeds.csv`` (one row per seed: its evaluation summary).
       progress: a progress bar over the environment steps of one seed.
