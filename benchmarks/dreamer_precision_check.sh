@@ -16,6 +16,7 @@ export JAX_COMPILATION_CACHE_DIR=${JAX_COMPILATION_CACHE_DIR:-$R/jax-cache}
 VARIANTS=(  # arena|settings
   "$D|"
   "$D|--set compute_dtype=bfloat16"
+  "$D|--seeds 3"
   "$D|--set num_arenas=64 --set batch_size=64"
   "$D|--set num_arenas=64 --set batch_size=64 --set compute_dtype=bfloat16"
   "$D|--set learning_starts=100000000"

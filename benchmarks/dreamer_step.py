@@ -55,6 +55,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--compile-only", action="store_true", help="stop after the first compiled call")
     parser.add_argument("--patch", choices=["flat-norm"], default=None)
+    parser.add_argument("--seeds", type=int, default=1,
+                        help="train this many seeds at once, vmapped, as `jarena train --seeds` does (the times are "
+                             "then for all seeds together)")
     args = parser.parse_args()
     if args.patch == "flat-norm":
         optax.clip_by_global_norm = clip_by_flat_global_norm
@@ -67,10 +70,16 @@ def main() -> None:
     agent = jarena_agents.build_agent(args.agent, config)
     cfg = agent.settings
     warmup = -(-(cfg.sequence_length + 1) // cfg.rollout_length)  # updates until every arena holds a sequence
-    state = agent.init_training(jax.random.key(0), arena)
-    fill = jax.jit(lambda ts: agent.train(ts, arena, warmup))
-    chunk = jax.jit(lambda ts: agent.train(ts, arena, args.updates))
-    variant = {"arena": args.arena, "overrides": overrides, "patch": args.patch,
+    if args.seeds == 1:
+        state = agent.init_training(jax.random.key(0), arena)
+        fill = jax.jit(lambda ts: agent.train(ts, arena, warmup))
+        chunk = jax.jit(lambda ts: agent.train(ts, arena, args.updates))
+    else:
+        keys = jax.random.split(jax.random.key(0), args.seeds)
+        state = jax.jit(jax.vmap(lambda key: agent.init_training(key, arena)))(keys)
+        fill = jax.jit(jax.vmap(lambda ts: agent.train(ts, arena, warmup)))
+        chunk = jax.jit(jax.vmap(lambda ts: agent.train(ts, arena, args.updates)))
+    variant = {"arena": args.arena, "overrides": overrides, "patch": args.patch, "seeds": args.seeds,
                "xla_flags": os.environ.get("XLA_FLAGS", ""), "device": jax.devices()[0].device_kind,
                "jax": jax.__version__}
     start = time.perf_counter()

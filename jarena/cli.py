@@ -402,9 +402,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="validate at most N times in the run, evenly spaced, the last after the final update "
                         "(0: never; each validation runs the arena's validation episodes to their end)")
     p.add_argument("--seeds", type=int, default=1, metavar="N",
-                   help="train N seeds (--seed .. --seed + N - 1) at once in one compiled program, about the cost of "
-                        "one where one run leaves the device idle, and evaluate each seed's final policy (no "
-                        "validations, selection or checkpoints)")
+                   help="train N seeds (--seed .. --seed + N - 1) at once in one compiled program (for runs that leave "
+                        "the device idle) and evaluate each seed's final policy (no validations, selection or "
+                        "checkpoints)")
     p.add_argument("--eval-arena", default=None, metavar="ARENA",
                    help="validate and evaluate on this arena's episodes instead (the same observation and action "
                         "specs): train on cheaper physics, e.g. \"dmc|domain:walker,task:walk,iterations:2\", and "

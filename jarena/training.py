@@ -323,8 +323,8 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
     """Trains ``agent`` once per seed, all seeds in one compiled program (the agent's training vmapped over a
     leading seed axis), then evaluates each seed's final policy on the eval episodes.
 
-    Where one run leaves the device idle (a world model's gradient step on a batch of 16 sequences, a
-    collection step of a few arenas), S seeds cost about what one does. Seed ``s``'s run is the run
+    Meant for runs that leave the device idle (a world model's gradient step on a batch of 16 sequences, a
+    collection step of a few arenas), where S seeds should cost little more than one. Seed ``s``'s run is the run
     :func:`train_and_evaluate` makes with ``jax.random.key(s)`` (the same updates; batched operations may round
     differently), without its validations, selection or checkpoints: the last policy of each seed is evaluated,
     and a stopped call starts again from the beginning. Each seed holds its own training state (replay buffer, or
