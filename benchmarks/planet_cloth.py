@@ -39,8 +39,8 @@ import yaml
 import jarena
 import jarena_agents
 from jarena.data import TrajectoryDataset, configs_for
-from jarena.runners.evaluate import evaluate
 from jarena.platform import enable_compilation_cache
+from jarena.runners.evaluate import evaluate
 from jarena.training import train_and_evaluate
 
 

@@ -219,6 +219,11 @@ def _cmd_train(args) -> int:
     from jarena.training import train_and_evaluate
 
     say = print if distributed.is_main_process() else (lambda *a, **k: None)
+    if args.seeds < 1:
+        raise ValueError(f"--seeds must be 1 or more, got {args.seeds}")
+    if args.seeds > 1 and (jax.process_count() > 1 or args.devices not in (None, 1, "1")):
+        raise ValueError("--seeds trains its seeds in one program on one device; leave out --devices and the launch "
+                         "flags (or train each seed as its own run)")
     arena = jarena.build_arena(args.arena)
     eval_arena = jarena.build_arena(args.eval_arena) if args.eval_arena else None
     config = _agent_config(args, arena)
@@ -234,8 +239,6 @@ def _cmd_train(args) -> int:
     seeds = f"seed {args.seed}" if args.seeds == 1 else f"seeds {args.seed} to {args.seed + args.seeds - 1}, at once"
     say(f"training {agent.name!r} on {args.arena!r} for {steps} {unit} on {where} ({seeds})"
         + (f"; validating and evaluating on {args.eval_arena!r}" if eval_arena is not None else ""), flush=True)
-    if args.seeds < 1:
-        raise ValueError(f"--seeds must be 1 or more, got {args.seeds}")
     if args.seeds > 1:
         return _train_seeds(args, agent, arena, eval_arena, say)
     result = train_and_evaluate(agent, arena, jax.random.key(args.seed), run_dir=args.run_dir,
@@ -254,13 +257,8 @@ def _cmd_train(args) -> int:
 
 def _train_seeds(args, agent, arena, eval_arena, say) -> int:
     """``jarena train --seeds N``: seeds ``--seed`` .. ``--seed + N - 1`` in one compiled program."""
-    import jax
-
     from jarena.training import train_seeds
 
-    if jax.process_count() > 1 or (args.devices not in (None, 1, "1")):
-        raise ValueError("--seeds trains its seeds in one program on one device; leave out --devices and the launch "
-                         "flags (or train each seed as its own run)")
     seeds = range(args.seed, args.seed + args.seeds)
     result = train_seeds(agent, arena, seeds, run_dir=args.run_dir, progress=not args.no_progress,
                          eval_arena=eval_arena)

@@ -203,12 +203,8 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
     if log_path is not None:
         log_path.mkdir(parents=True, exist_ok=True)
         (log_path / "config.json").write_text(json.dumps(
-            {"agent": agent.name, "arena": arena.build_string or arena.name,
-             **({"eval_arena": eval_arena.build_string or eval_arena.name} if eval_arena is not arena else {}),
-             "config": agent.config,
-             "total_steps": total_steps, "select": select, "jax": jax.__version__,
-             "device": str(jax.devices()[0]), "devices": int(mesh.devices.size),
-             "processes": jax.process_count()}, indent=2, default=str))
+            _run_config(agent, arena, eval_arena, total_steps=total_steps, select=select,
+                        devices=int(mesh.devices.size), processes=jax.process_count()), indent=2, default=str))
 
     train_state, chunk = _compiled_training(agent, arena, key, mesh)
     history, validations_done = [], []
@@ -288,12 +284,12 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
 class SeedsResult:
     """What :func:`train_seeds` returns: ``train_state`` (leaves with a leading seed axis (S, ...)), ``histories``
     (per seed, one dict per chunk, as :attr:`TrainResult.history`), ``evaluations`` (per seed, its final policy on
-    the eval episodes) and the seeds' ``keys``."""
+    the eval episodes) and the ``seeds``, in that order."""
 
     train_state: Any
     histories: list[list[dict[str, float]]]
     evaluations: list[EvalResult]
-    keys: list[int]
+    seeds: list[int]
 
     def summary(self) -> dict[str, float]:
         """Over the seeds: ``seeds``, and the mean and standard deviation (ddof 0) of each seed's evaluation
@@ -308,11 +304,11 @@ class SeedsResult:
     def table(self) -> str:
         """One line per seed (eval return mean +- std over its episodes, success) and the mean over seeds."""
         lines = ["seed | eval return (mean +- std over episodes) | success"]
-        for seed, evaluation in zip(self.keys, self.evaluations, strict=True):
+        for seed, evaluation in zip(self.seeds, self.evaluations, strict=True):
             s = evaluation.summary()
             lines.append(f"{seed} | {s['return_mean']:.1f} +- {s['return_std']:.1f} | {s.get('success_rate', 0):.0%}")
         total = self.summary()
-        lines.append(f"all {len(self.keys)} | {total['return_mean_mean']:.1f} +- {total['return_mean_std']:.1f} "
+        lines.append(f"all {len(self.seeds)} | {total['return_mean_mean']:.1f} +- {total['return_mean_std']:.1f} "
                      f"(over seeds) | {total.get('success_rate_mean', 0):.0%}")
         return "\n".join(lines)
 
@@ -356,11 +352,10 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
     run_path = Path(run_dir) if run_dir is not None else None
     if run_path is not None:
         run_path.mkdir(parents=True, exist_ok=True)
+        for seed in seeds:
+            (run_path / f"seed_{seed}").mkdir(exist_ok=True)
         (run_path / "config.json").write_text(json.dumps(
-            {"agent": agent.name, "arena": arena.build_string or arena.name, "seeds": seeds,
-             **({"eval_arena": eval_arena.build_string or eval_arena.name} if eval_arena is not arena else {}),
-             "config": agent.config, "total_steps": total_steps, "jax": jax.__version__,
-             "device": str(jax.devices()[0])}, indent=2, default=str))
+            _run_config(agent, arena, eval_arena, total_steps=total_steps, seeds=seeds), indent=2, default=str))
     keys = jax.random.wrap_key_data(np.stack([np.asarray(jax.random.key_data(jax.random.key(s))) for s in seeds]))
     train_state = jax.jit(jax.vmap(lambda key: agent.init_training(key, arena)))(keys)
     chunk = jax.jit(lambda ts, n: jax.vmap(lambda one: agent.train(one, arena, n))(ts), static_argnums=1,
@@ -380,7 +375,6 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
             bar.update(n * steps_per_update, _mean_row([h[-1] for h in histories]))
             if run_path is not None:
                 for seed, history in zip(seeds, histories, strict=True):
-                    (run_path / f"seed_{seed}").mkdir(exist_ok=True)
                     _write_csv(run_path / f"seed_{seed}" / "train.csv", history)
     finally:
         bar.close()
@@ -393,12 +387,11 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
                                                                "env_steps": done * steps_per_update})
         evaluations.append(evaluation)
         if run_path is not None:
-            (run_path / f"seed_{seed}" / "evaluation.json").write_text(json.dumps(
-                {"summary": evaluation.summary(), "selected": evaluation.selected,
-                 "episodes": evaluation.per_episode()}, indent=2))
-    result = SeedsResult(train_state=train_state, histories=histories, evaluations=evaluations, keys=seeds)
+            _write_evaluation(run_path / f"seed_{seed}" / "evaluation.json", evaluation)
+    result = SeedsResult(train_state=train_state, histories=histories, evaluations=evaluations, seeds=seeds)
     if run_path is not None:
-        _write_csv(run_path / "seeds.csv", [{"seed": float(s), **e.summary()} for s, e in zip(seeds, evaluations)])
+        rows = [{"seed": float(seed), **e.summary()} for seed, e in zip(seeds, evaluations, strict=True)]
+        _write_csv(run_path / "seeds.csv", rows)
     return result
 
 
@@ -418,10 +411,29 @@ def _check_same_specs(arena: Arena, eval_arena: Arena) -> None:
     for what in ("observation", "action", "goal_dim"):
         trained, evaluated = getattr(arena.spec, what), getattr(eval_arena.spec, what)
         if trained != evaluated:
-            raise ValueError(f"eval_arena {eval_arena.build_string or eval_arena.name!r} has another {what} spec than "
-                             f"the training arena {arena.build_string or arena.name!r}: {evaluated!r} against "
+            raise ValueError(f"eval_arena {_label(eval_arena)!r} has another {what} spec than "
+                             f"the training arena {_label(arena)!r}: {evaluated!r} against "
                              f"{trained!r}; a policy trained on one must be able to act in the other (the same "
                              f"domain and task, other physics options)")
+
+
+def _label(arena: Arena) -> str:
+    """The string an arena was built from, else its name."""
+    return arena.build_string or arena.name
+
+
+def _run_config(agent, arena: Arena, eval_arena: Arena, **extra) -> dict:
+    """A run directory's ``config.json``: the agent, the arena (and the eval arena when another), the agent's config,
+    ``extra``, and the jax version and device."""
+    return {"agent": agent.name, "arena": _label(arena),
+            **({"eval_arena": _label(eval_arena)} if eval_arena is not arena else {}),
+            "config": agent.config, **extra, "jax": jax.__version__, "device": str(jax.devices()[0])}
+
+
+def _write_evaluation(path: Path, evaluation: EvalResult) -> None:
+    """``evaluation.json``: the summary, which policy was evaluated (``selected``) and every episode's results."""
+    path.write_text(json.dumps({"summary": evaluation.summary(), "selected": evaluation.selected,
+                                "episodes": evaluation.per_episode()}, indent=2))
 
 
 def _compiled_training(agent, arena: Arena, key: jax.Array, mesh):
@@ -558,8 +570,7 @@ def _evaluate_and_write(agent, arena: Arena, policy, selected: dict, run_path: P
         return evaluation
     _write_csv(log_path / "train.csv", history)
     _write_csv(log_path / "validation.csv", validations)
-    (log_path / "evaluation.json").write_text(json.dumps(
-        {"summary": evaluation.summary(), "selected": selected, "episodes": evaluation.per_episode()}, indent=2))
+    _write_evaluation(log_path / "evaluation.json", evaluation)
     _plot(log_path / "learning_curve.png", history, validations, evaluation, agent.name, arena.name,
           int(getattr(arena.tool, "substeps", 1) or 1))
     if write_videos:
@@ -685,6 +696,8 @@ class _progress:
     def close(self) -> None:
         if self.bar is not None:
             self.bar.close()
+
+
 def trained_arena(run_dir: Path, arena: Arena) -> Arena:
     """The arena a run trained on (its ``config.json``), whose batch state the checkpoint holds; ``arena``
     when it is the same or unknown. A policy trained on one arena may act in another with the same

@@ -285,7 +285,7 @@ def test_flat_global_norm_clip_equals_optax_per_leaf_clip():
     for max_norm in (1.0, 5.0, 1e3):  # clipped, clipped, untouched
         ours, _ = wm.clip_by_flat_global_norm(max_norm).update(tree, optax.EmptyState())
         theirs, _ = optax.clip_by_global_norm(max_norm).update(tree, optax.EmptyState())
-        for a, b in zip(jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(theirs)):
+        for a, b in zip(jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(theirs), strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-6)
         assert float(optax.global_norm(ours)) == pytest.approx(min(max_norm, float(optax.global_norm(tree))), rel=1e-6)
 
@@ -310,8 +310,8 @@ def test_bfloat16_compute_keeps_float32_params_state_and_losses(pendulum):
 
         results[dtype] = (params, *step(params, experience, jax.random.key(2)))
     (p32, total32, m32, lat32, _, _), (p16, total16, m16, lat16, new16, after16) = results.values()
-    chex_equal = jax.tree_util.tree_map(lambda a, b: bool(jnp.array_equal(a, b)), p32, p16)
-    assert all(jax.tree_util.tree_leaves(chex_equal))  # identical float32 initial parameters
+    same = jax.tree_util.tree_map(lambda a, b: bool(jnp.array_equal(a, b)), p32, p16)
+    assert all(jax.tree_util.tree_leaves(same))  # identical float32 initial parameters
     assert lat16.deter.dtype == jnp.float32 and lat16.stoch.dtype == jnp.float32
     np.testing.assert_allclose(m16["reward_loss"], np.log(255), rtol=1e-5)  # zero-initialised head, any dtype
     np.testing.assert_allclose(m16["observation_loss"], m32["observation_loss"], rtol=0.05)
