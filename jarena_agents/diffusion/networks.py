@@ -22,6 +22,7 @@ import jax.numpy as jnp
 from jarena_agents.networks import init_params, spatial_softmax  # noqa: F401  (init_params: the agent reads it here)
 
 GROUP_NORM_EPSILON = 1e-5
+CONVOLUTION = "auto"  # how Conv convolves (:func:`convolve`'s method), read when a program is traced
 
 
 def unfold(x: jax.Array, size: Sequence[int], strides: Sequence[int], padding: Sequence[tuple[int, int]]) -> jax.Array:
@@ -43,13 +44,37 @@ def dilate(x: jax.Array, factor: int) -> jax.Array:
     return spread.reshape(n, length * factor, channels)[:, :factor * (length - 1) + 1]
 
 
-class Conv(nn.Module):
-    """A convolution, channels last, as a matrix product over :func:`unfold` ed windows; kernel (*size, C, O).
+def convolve(x: jax.Array, kernel: jax.Array, strides: Sequence[int], padding: Sequence[tuple[int, int]],
+             dilation: int = 1, method: str = "auto") -> jax.Array:
+    """A convolution, channels last: ``x`` (N, *spatial, C), ``kernel`` (*size, C, O) -> (N, *out, O).
 
-    XLA's CPU backend runs the gradients of its convolution operator 10 to 50 times slower inside a loop (the
-    ``lax.scan`` of a training chunk) than outside it; matrix products run at full speed in both, on every backend.
-    ``dilation`` spreads the input first (zeros between steps, 1-D): with ``padding`` (k - 1 - p) on each side, the
-    transposed convolution that doubles a length.
+    ``dilation`` spreads the input first (``dilation - 1`` zeros between steps; 1-D). ``method``: ``"matmul"``, a
+    matrix product over :func:`unfold` ed windows; ``"xla"``, XLA's convolution operator (cuDNN on a GPU); ``"auto"``
+    (default), the matrix product on the CPU and XLA's operator elsewhere. XLA's CPU backend runs the gradients of
+    its convolution operator 10 to 50 times slower inside a loop (the ``lax.scan`` of a training chunk) than outside
+    it, where matrix products run at full speed; on a GPU the operator is the faster (unfolding copies every window).
+    Both compute the same convolution, to float rounding.
+    """
+    if method not in ("auto", "matmul", "xla"):
+        raise ValueError(f"convolution method {method!r}; valid: auto, matmul, xla")
+    if method == "auto":
+        method = "matmul" if jax.default_backend() == "cpu" else "xla"
+    rank = kernel.ndim - 2
+    if method == "xla":
+        spatial = "DHW"[-rank:] if rank <= 3 else None
+        numbers = (f"N{spatial}C", f"{spatial}IO", f"N{spatial}C")
+        return jax.lax.conv_general_dilated(x, kernel.astype(x.dtype), tuple(strides), [tuple(p) for p in padding],
+                                            lhs_dilation=(dilation,) * rank, dimension_numbers=numbers)
+    if dilation > 1:
+        x = dilate(x, dilation)
+    order = tuple(reversed(range(rank))) + (rank, rank + 1)  # unfold's feature order
+    return unfold(x, kernel.shape[:rank], strides, padding) @ kernel.transpose(order).reshape(-1, kernel.shape[-1])
+
+
+class Conv(nn.Module):
+    """A convolution, channels last, by :func:`convolve` with the method :data:`CONVOLUTION` (``"auto"``: a matrix
+    product on the CPU, XLA's operator elsewhere); kernel (*size, C, O). ``dilation`` spreads the input first (zeros between steps, 1-D): with ``padding``
+    (k - 1 - p) on each side, the transposed convolution that doubles a length.
     """
 
     features: int
@@ -65,12 +90,8 @@ class Conv(nn.Module):
         strides = tuple(self.strides or (1,) * len(size))
         padding = self.padding if self.padding is not None else [(0, 0)] * len(size)
         kernel = self.param("kernel", nn.initializers.lecun_normal(), size + (x.shape[-1], self.features))
-        if self.dilation > 1:
-            x = dilate(x, self.dilation)
-        order = tuple(reversed(range(len(size)))) + (len(size), len(size) + 1)  # unfold's feature order
-        y = unfold(x, size, strides, padding) @ kernel.transpose(order).reshape(-1, self.features)
+        y = convolve(x, kernel, strides, padding, self.dilation, CONVOLUTION)
         return y + self.param("bias", nn.initializers.zeros, (self.features,)) if self.use_bias else y
-
 
 
 def mish(x: jax.Array) -> jax.Array:

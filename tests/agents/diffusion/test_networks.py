@@ -3,6 +3,7 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from jarena_agents.diffusion import networks
 
@@ -34,7 +35,9 @@ def test_one_groupnorm_encoder_per_image_key_joined_with_the_vector():
 
 
 def test_convolutions_as_matrix_products_match_xla_convolutions():
-    """The ResNet stem's 7 x 7 stride-2 convolution and the U-Net's length-doubling one (input dilated by 2)."""
+    """The ResNet stem's 7 x 7 stride-2 convolution and the U-Net's length-doubling one (input dilated by 2): the
+    matrix product over unfolded windows (what ``Conv`` runs on the CPU) and XLA's operator through ``convolve``
+    (what it runs on a GPU) both equal XLA's convolution called directly."""
     cases = [((2, 9, 11, 3), (7, 7), (2, 2), [(3, 3)] * 2, 1, ("NHWC", "HWIO", "NHWC")),
              ((2, 4, 5), (4,), (1,), [(2, 2)], 2, ("NWC", "WIO", "NWC"))]
 
@@ -49,12 +52,17 @@ def test_convolutions_as_matrix_products_match_xla_convolutions():
             conv = networks.Conv(6, size, strides, padding, use_bias=False, dilation=dilation)
             xla = jax.lax.conv_general_dilated(x, kernel, strides, padding, lhs_dilation=(dilation,) * len(size),
                                                dimension_numbers=numbers)
-            out.append((conv.apply({"params": {"kernel": kernel}}, x), xla))
+            out.append((conv.apply({"params": {"kernel": kernel}}, x), xla,
+                        networks.convolve(x, kernel, strides, padding, dilation, method="matmul"),
+                        networks.convolve(x, kernel, strides, padding, dilation, method="xla")))
         return out
 
-    for ours, xla in compare(inputs):
-        assert ours.shape == xla.shape
-        np.testing.assert_allclose(ours, xla, atol=1e-5)
+    for ours, xla, matmul, operator in compare(inputs):
+        assert ours.shape == xla.shape == matmul.shape == operator.shape
+        for got in (ours, matmul, operator):
+            np.testing.assert_allclose(got, xla, atol=1e-5)
+    with pytest.raises(ValueError, match="valid: auto, matmul, xla"):
+        networks.convolve(*inputs[0], (2, 2), [(3, 3)] * 2, method="cudnn")
 
 
 def test_crops():
