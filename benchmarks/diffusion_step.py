@@ -16,12 +16,12 @@ import argparse
 import json
 
 import jax
+from timing import environment, time_interleaved
 
 import jarena
 import jarena_agents
 from jarena.cli import parse_override
 from jarena_agents.diffusion import networks
-from timing import environment, time_interleaved
 
 
 def main() -> None:

@@ -73,8 +73,9 @@ def convolve(x: jax.Array, kernel: jax.Array, strides: Sequence[int], padding: S
 
 class Conv(nn.Module):
     """A convolution, channels last, by :func:`convolve` with the method :data:`CONVOLUTION` (``"auto"``: a matrix
-    product on the CPU, XLA's operator elsewhere); kernel (*size, C, O). ``dilation`` spreads the input first (zeros between steps, 1-D): with ``padding``
-    (k - 1 - p) on each side, the transposed convolution that doubles a length.
+    product on the CPU, XLA's operator elsewhere); kernel (*size, C, O). ``dilation`` spreads the input first
+    (zeros between steps, 1-D): with ``padding`` (k - 1 - p) on each side, the transposed convolution that doubles
+    a length.
     """
 
     features: int
