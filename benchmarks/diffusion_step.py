@@ -30,7 +30,7 @@ def main() -> None:
     parser.add_argument("--set", action="append", type=parse_override, default=[], metavar="KEY=VALUE")
     parser.add_argument("--updates", type=int, default=50, help="updates per timed call")
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--methods", default="matmul,xla", help="comma-separated convolution methods")
+    parser.add_argument("--methods", default="matmul,xla,auto", help="comma-separated convolution methods")
     args = parser.parse_args()
 
     arena = jarena.build_arena(args.arena)

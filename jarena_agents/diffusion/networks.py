@@ -50,16 +50,18 @@ def convolve(x: jax.Array, kernel: jax.Array, strides: Sequence[int], padding: S
 
     ``dilation`` spreads the input first (``dilation - 1`` zeros between steps; 1-D). ``method``: ``"matmul"``, a
     matrix product over :func:`unfold` ed windows; ``"xla"``, XLA's convolution operator (cuDNN on a GPU); ``"auto"``
-    (default), the matrix product on the CPU and XLA's operator elsewhere. XLA's CPU backend runs the gradients of
-    its convolution operator 10 to 50 times slower inside a loop (the ``lax.scan`` of a training chunk) than outside
-    it, where matrix products run at full speed; on a GPU the operator is the faster (unfolding copies every window).
-    Both compute the same convolution, to float rounding.
+    (default), XLA's operator for 2-D convolutions off the CPU and the matrix product otherwise. XLA's CPU backend
+    runs the gradients of its convolution operator 10 to 50 times slower inside a loop (the ``lax.scan`` of a
+    training chunk) than outside it, where matrix products run at full speed. On an H200, XLA's operator made the
+    image encoder's update faster (PushT from images: 7.9 against 9.6 ms) and the U-Net's 1-D one slower (PushT's
+    keypoints: 7.0 against 6.4 ms; ``benchmarks/diffusion_step.py``). Both compute the same convolution, to float
+    rounding.
     """
     if method not in ("auto", "matmul", "xla"):
         raise ValueError(f"convolution method {method!r}; valid: auto, matmul, xla")
-    if method == "auto":
-        method = "matmul" if jax.default_backend() == "cpu" else "xla"
     rank = kernel.ndim - 2
+    if method == "auto":
+        method = "xla" if rank >= 2 and jax.default_backend() != "cpu" else "matmul"
     if method == "xla":
         spatial = "DHW"[-rank:] if rank <= 3 else None
         numbers = (f"N{spatial}C", f"{spatial}IO", f"N{spatial}C")
@@ -72,8 +74,8 @@ def convolve(x: jax.Array, kernel: jax.Array, strides: Sequence[int], padding: S
 
 
 class Conv(nn.Module):
-    """A convolution, channels last, by :func:`convolve` with the method :data:`CONVOLUTION` (``"auto"``: a matrix
-    product on the CPU, XLA's operator elsewhere); kernel (*size, C, O). ``dilation`` spreads the input first
+    """A convolution, channels last, by :func:`convolve` with the method :data:`CONVOLUTION` (``"auto"``: XLA's
+    operator for 2-D convolutions off the CPU, a matrix product otherwise); kernel (*size, C, O). ``dilation`` spreads the input first
     (zeros between steps, 1-D): with ``padding`` (k - 1 - p) on each side, the transposed convolution that doubles
     a length.
     """
