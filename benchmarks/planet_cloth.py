@@ -1,26 +1,30 @@
-"""Offline PlaNet against BC on cloth flattening from pixels, both trained on the same dataset: collection, training
-and the final normalised coverage after ``--actions`` pick-and-places on the eval episodes, with the wall time of
-each part. Made for a GPU (the committed configs: 50,000 PlaNet updates and 20,000 BC updates).
+"""Offline PlaNet against BC (and Diffusion Policy) on cloth flattening from pixels, all trained on the same dataset:
+collection, training and the final normalised coverage after ``--actions`` pick-and-places on the eval episodes, with
+the wall time of each part. Made for a GPU (the committed configs: 50,000 PlaNet updates, 20,000 BC updates, 20,000
+diffusion updates).
 
     python benchmarks/planet_cloth.py --demos 256 --run-dir runs/planet_cloth
 
 1. ``jarena.collect``: ``--demos`` episodes of ``oracle_cloth_flattening`` (training episodes) into a dataset, then
    ``--random`` episodes of the ``random`` agent appended to it (default none: the oracle's demonstrations alone,
    as bc's cloth results were collected; a world model may need the random actions, see docs/agents/planet.md);
-2. ``train_and_evaluate``: ``planet`` offline on that dataset (``configs/planet/cloth-square_fabric-flattening``),
-   then ``bc`` on it (``configs/bc/cloth-square_fabric-flattening``), each evaluated with its final policy on the
-   ``--episodes`` eval episodes (no validation);
+   ``--set-oracle KEY=VALUE`` sets the oracle's config keys (e.g. ``interior=0 outward=0.15 tips=false``, the
+   lookahead of 2026-11-25 that bc's first cloth results cloned);
+2. ``train_and_evaluate``: each of ``--agents`` (default ``planet,bc``; also ``diffusion``) offline on that dataset
+   from its committed config (``configs/<agent>/cloth-square_fabric-flattening``), each evaluated with its final
+   policy on the ``--episodes`` eval episodes (no validation);
 3. the ``random`` agent on the same eval episodes.
 
 The arena is bc's of benchmarks/RESULTS.md ("BC from pixels on cloth flattening"): ``cloth|domain:square_fabric,
 initial:crumpled,particles:40,resolution:64,depth:false,mask:false,horizon:10``. Prints a table: per agent the
 updates, training seconds (compilation included), updates per second after the first chunk, evaluation seconds, the
 mean final normalised coverage (after the episode's last action), the episodes at 0.9 or more, the success rate
-(0.99) and the return. ``--set-planet KEY=VALUE`` / ``--set-bc KEY=VALUE`` override config keys; ``--particles``,
-``--resolution`` and the step counts make a small run for a smoke test on a CPU:
+(0.99) and the return. ``--set-planet KEY=VALUE`` / ``--set-bc`` / ``--set-diffusion`` override config keys;
+``--particles``, ``--resolution`` and the step counts make a small run for a smoke test on a CPU:
 
     python benchmarks/planet_cloth.py --demos 4 --particles 8 --resolution 16 --actions 3 --episodes 4 \\
-        --planet-steps 20 --bc-steps 20 --set-planet cnn_layers=2 --set-planet samples=16 --set-planet iterations=2
+        --planet-steps 20 --bc-steps 20 --set-planet cnn_layers=2 --set-planet samples=16 --set-planet iterations=2 \\
+        --set-planet sequence_length=3
 """
 
 from __future__ import annotations
@@ -53,11 +57,11 @@ def overrides(items: list[str]) -> dict:
     return {k: yaml.safe_load(v) for k, v in (item.split("=", 1) for item in items)}
 
 
-def collect(arena, path: Path, demos: int, random: int, seed: int, batch: int) -> dict:
+def collect(arena, path: Path, demos: int, random: int, seed: int, batch: int, oracle_config: dict) -> dict:
     """Writes the dataset; returns what it holds and the seconds it took."""
     start = time.perf_counter()
     with TrajectoryDataset(path, "w", **configs_for(arena)) as dataset:
-        oracle = jarena_agents.build_agent("oracle_cloth_flattening", {"arena": arena.build_string})
+        oracle = jarena_agents.build_agent("oracle_cloth_flattening", dict(oracle_config, arena=arena.build_string))
         jarena.collect(oracle, arena, dataset, demos, key=jax.random.key(seed + 1_000), num_arenas=min(batch, demos),
                        progress=False)
         oracle_s = time.perf_counter() - start
@@ -114,8 +118,15 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=128, help="arenas collected in parallel")
     parser.add_argument("--planet-steps", type=int, default=None, help="planet's gradient updates (default: config)")
     parser.add_argument("--bc-steps", type=int, default=None, help="bc's gradient updates (default: config)")
+    parser.add_argument("--diffusion-steps", type=int, default=None,
+                        help="diffusion's gradient updates (default: config)")
+    parser.add_argument("--agents", default="planet,bc", help="comma-separated agents to train: planet, bc, diffusion")
     parser.add_argument("--set-planet", action="append", default=[], metavar="KEY=VALUE", help="planet config key")
     parser.add_argument("--set-bc", action="append", default=[], metavar="KEY=VALUE", help="bc config key")
+    parser.add_argument("--set-diffusion", action="append", default=[], metavar="KEY=VALUE",
+                        help="diffusion config key")
+    parser.add_argument("--set-oracle", action="append", default=[], metavar="KEY=VALUE",
+                        help="oracle_cloth_flattening config key (the demonstrations' oracle)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--devices", default=None, help="train data-parallel on N devices, or 'all'")
     parser.add_argument("--run-dir", default=None, help="keep the dataset, logs and results here")
@@ -124,10 +135,16 @@ def main() -> None:
     print(f"compilation cache: {cache or 'off'}", flush=True)
     devices = args.devices if args.devices in (None, "all") else int(args.devices)
     print(f"{jax.devices()[0].device_kind}, jax {jax.__version__}, Python {platform.python_version()}", flush=True)
-    configs = {"planet": overrides(args.set_planet), "bc": overrides(args.set_bc)}
-    for name, steps in (("planet", args.planet_steps), ("bc", args.bc_steps)):
+    agents = args.agents.split(",")
+    unknown = sorted(set(agents) - {"planet", "bc", "diffusion"})
+    if unknown:
+        parser.error(f"unknown agents {unknown}; choose from planet, bc, diffusion")
+    configs = {"planet": overrides(args.set_planet), "bc": overrides(args.set_bc),
+               "diffusion": overrides(args.set_diffusion)}
+    for name, steps in (("planet", args.planet_steps), ("bc", args.bc_steps), ("diffusion", args.diffusion_steps)):
         if steps is not None:
             configs[name]["total_steps"] = steps
+    oracle_config = overrides(args.set_oracle)
 
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.run_dir or tmp)
@@ -135,11 +152,11 @@ def main() -> None:
         arena = jarena.build_arena(arena_string(args.particles, args.resolution, args.actions, args.episodes))
         print(f"arena: {arena.build_string}", flush=True)
         data = root / f"cloth_{args.demos}_oracle_{args.random}_random"
-        held = collect(arena, data, args.demos, args.random, args.seed, args.batch)
+        held = collect(arena, data, args.demos, args.random, args.seed, args.batch, oracle_config)
         print(f"collected {held['trajectories']} episodes ({held['steps']} actions) in {held['seconds']:.1f} s "
               f"(oracle {held['oracle_s']:.1f} s): final coverage {held['oracle_final']:.3f} (oracle)"
               + (f", {held['random_final']:.3f} (random)" if args.random else ""), flush=True)
-        rows = [train(name, arena, data, configs[name], args.seed, root / name, devices) for name in ("planet", "bc")]
+        rows = [train(name, arena, data, configs[name], args.seed, root / name, devices) for name in agents]
         start = time.perf_counter()
         rows.append(row("random", evaluate(jarena_agents.build_agent("random"), arena, jax.random.key(args.seed)),
                         0, time.perf_counter() - start))
@@ -153,7 +170,8 @@ def main() -> None:
         print(f"| {r['agent']} | {r['updates']} | {fmt(r['train_s'], '.1f')} | {fmt(r['updates_per_s'], '.1f')} | "
               f"{r['evaluate_s']:.1f} | {r['final_coverage']:.3f} | {r['reach_90']}/{r['episodes']} | "
               f"{r['success_rate']:.0%} | {r['return_mean']:.2f} |")
-    print(json.dumps({"collect": held, "rows": rows, "configs": configs}, default=str))
+    print(json.dumps({"collect": held, "rows": rows, "configs": {k: configs[k] for k in agents},
+                      "oracle": oracle_config}, default=str))
 
 
 if __name__ == "__main__":
