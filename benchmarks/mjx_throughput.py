@@ -21,6 +21,9 @@ variants so that load changes weigh on all alike. Variants:
   same reset semantics as ``playground``.
 - ``playground``: mujoco_playground's equivalent environment on MJX (``impl="jax"``, not Warp), with
   its Brax-training wrapper (episode length 1000, auto-reset), as Playground's trainers step it.
+- ``ours-scan`` (dmc only): ours with ``differentiable:true``: the constraint solver's line search as MJX writes
+  it (a fixed-length ``lax.scan`` whose steps idle once it has converged, as ``raw`` runs it) instead of ours'
+  while loop; the same states to the bit.
 - ``ours-noreset``, ``ours-pg-noreset`` and ``ours-select`` (diagnostics): the arena step without
   auto-reset (suite options, Playground's options), and with the select-based auto-reset (a reset computed
   for every arena at every step) instead of the lazy one.
@@ -71,11 +74,11 @@ ENVS = {
     "ant": {"ours": "brax|env:ant,backend:mjx", "brax": "ant", "gpu_steps": 100},
 }
 VARIANTS = ("raw", "ours", "ours-repeat", "ours-pg-options", "ours-pg-repeat", "playground", "brax", "ours-noreset",
-            "ours-select", "ours-pg-noreset")
+            "ours-select", "ours-pg-noreset", "ours-scan")
 #: (ours, peer) pairs compared in the summary: like for like where the names say so.
-COMPARISONS = (("ours", "raw"), ("ours-repeat", "raw"), ("ours-noreset", "raw"), ("ours-repeat", "brax"),
-               ("ours", "brax"), ("ours-pg-repeat", "playground"), ("ours-pg-options", "playground"),
-               ("ours-pg-noreset", "playground"))
+COMPARISONS = (("ours", "ours-scan"), ("ours", "raw"), ("ours-repeat", "raw"), ("ours-noreset", "raw"),
+               ("ours-repeat", "brax"), ("ours", "brax"), ("ours-pg-repeat", "playground"),
+               ("ours-pg-options", "playground"), ("ours-pg-noreset", "playground"))
 
 
 def _random_actions(key, t, batch, dim):
@@ -204,6 +207,7 @@ OURS = {
     "ours-noreset": (lambda env: "", "none"),
     "ours-pg-noreset": (lambda env: "," + playground_options(env), "none"),
     "ours-select": (lambda env: "", "select"),
+    "ours-scan": (lambda env: ",differentiable:true", None),
 }
 
 
@@ -219,6 +223,8 @@ def applicable(variant: str, env: str) -> bool:
         return "playground" in ENVS[env]
     if variant == "brax":
         return "brax" in ENVS[env]
+    if variant == "ours-scan":
+        return ENVS[env]["ours"].startswith("dmc|")
     return True
 
 

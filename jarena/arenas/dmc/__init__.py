@@ -66,7 +66,7 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
           timestep: float | None = None, max_contact_points: int | None = None, max_geom_pairs: int | None = None,
           touch_sensors: bool | None = None, auto_reset: str | None = None, pixels: Any = None,
           depth: bool | None = None, segmentation: bool | None = None, state: bool | None = None,
-          camera: Any = None, frame_stack: int | None = None) -> Arena:
+          camera: Any = None, frame_stack: int | None = None, differentiable: bool | None = None) -> Arena:
     """Builds a DeepMind Control Suite arena on MJX.
 
     Args:
@@ -102,12 +102,15 @@ def build(domain: str, task: Any = None, action: Any = None, time_limit: int | N
       camera: with ``pixels``, the model camera's name or id (default 0).
       frame_stack: with ``pixels``, the last K images (and depth maps) instead of the last one:
         ``pixels`` (H, W, 3 K), oldest first (:func:`jarena.sensors.frame_stack`).
+      differentiable: ``true`` keeps MJX's constraint line search as a fixed-length scan, so that reverse-mode
+        gradients flow through ``step`` (default: a while loop, which gives the same states sooner;
+        :mod:`jarena.arenas.mjx.dynamics`).
     """
     if domain in UNSUPPORTED:
         raise NotImplementedError(f"dmc domain {domain!r} cannot run on MJX: {UNSUPPORTED[domain]}")
     domains = DOMAINS
     options = (iterations, ls_iterations, integrator, eulerdamp, timestep, max_contact_points, max_geom_pairs,
-               touch_sensors)
+               touch_sensors, differentiable)
     if any(o is not None for o in options) and domain in SUITE:
         from jarena.arenas.dmc import common
         dom = DOMAINS[domain]

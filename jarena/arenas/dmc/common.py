@@ -203,7 +203,7 @@ def _positive_int(name: str, value) -> int:
 def with_options(dynamics: Dynamics, iterations: int | None = None, ls_iterations: int | None = None,
                  integrator: str | None = None, eulerdamp: bool | None = None, timestep: float | None = None,
                  max_contact_points: int | None = None, max_geom_pairs: int | None = None,
-                 touch_sensors: bool | None = None) -> Dynamics:
+                 touch_sensors: bool | None = None, differentiable: bool | None = None) -> Dynamics:
     """``dynamics`` with MuJoCo simulation options changed (cached); ``None`` keeps the model's value.
 
     The suite's models allow 100 solver and 50 line-search iterations (MJX stops early at the solver's
@@ -225,6 +225,8 @@ def with_options(dynamics: Dynamics, iterations: int | None = None, ls_iteration
       touch_sensors: ``False`` leaves the model's touch sensors out (MJX computes them from the contact
         forces every physics step; Playground's humanoid has none). Only for models that ``load_model``
         made, whose tasks never read them: the caller checks that.
+      differentiable: ``True`` keeps MJX's line search as a scan so that reverse-mode gradients flow through the
+        step (:func:`jarena.arenas.mjx.dynamics.mjx_dynamics`); default a while loop, the same states sooner.
     """
     from jarena.arenas.mjx.render import renderer_for
     model = dynamics.render.model
@@ -263,8 +265,11 @@ def with_options(dynamics: Dynamics, iterations: int | None = None, ls_iteration
             raise ValueError(f"eulerdamp must be true or false, got {eulerdamp!r}")
         bit = int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
         model.opt.disableflags = (model.opt.disableflags & ~bit) if eulerdamp else (model.opt.disableflags | bit)
+    if differentiable is not None and not isinstance(differentiable, bool):
+        raise ValueError(f"differentiable must be true or false, got {differentiable!r}")
     substeps = int(round(dynamics.timestep / float(model.opt.timestep)))
-    return mjx_dynamics(model, substeps, name=dynamics.name, render=renderer_for(model))
+    return mjx_dynamics(model, substeps, name=dynamics.name, render=renderer_for(model),
+                        differentiable=bool(differentiable))
 
 
 # ---------------------------------------------------------------- collision-free initial states

@@ -270,7 +270,7 @@ def raven_dynamics(scene: Scene, substeps: int = 4, render: Callable | None = No
         raise ValueError(f"substeps must be >= 1, got {substeps}")
     from mujoco import mjx  # imported when a Raven arena is built, so that importing jarena does not load MuJoCo
 
-    from jarena.arenas.mjx.dynamics import MjxParams, apply_params
+    from jarena.arenas.mjx.dynamics import MjxParams, apply_params, while_line_search
 
     with jax.ensure_compile_time_eval():
         device_model = mjx.put_model(scene.model)
@@ -290,7 +290,8 @@ def raven_dynamics(scene: Scene, substeps: int = 4, render: Callable | None = No
     def step(physics, control, params):
         physics = move_cup(physics, control)
         model = _with_grasp(_with_shapes(apply_params(device_model, params), physics), physics.grasp)
-        data = jax.lax.fori_loop(0, substeps, lambda _, d: mjx.step(model, d), physics.data)
+        with while_line_search():  # the same states as MJX's scan, sooner (jarena.arenas.mjx.dynamics)
+            data = jax.lax.fori_loop(0, substeps, lambda _, d: mjx.step(model, d), physics.data)
         physics = physics.replace(data=mjx.kinematics(model, data))
         return physics.replace(slip=jnp.maximum(physics.slip, grasp_error(physics)))
 

@@ -72,3 +72,48 @@ def test_a_control_step_is_substeps_physics_steps_ending_consistent(substeps):
     # kinematics consistent with the new positions, as dm_control's
     np.testing.assert_allclose(data.xpos, jax.jit(mjx.kinematics)(m, data).xpos, atol=1e-6)
     assert float(data.time) == pytest.approx(60 // substeps * substeps * 0.005)
+
+
+def test_the_while_line_search_steps_a_batch_to_the_same_bits_as_mjx_scan():
+    """The default dynamics (line search as a while loop) and ``differentiable=True`` (MJX's fixed-length scan)
+    give the same states to the bit, vmapped over arenas whose searches end at different iterations."""
+    model = mujoco.MjModel.from_xml_string(_XML)
+    params = jax.tree.map(jnp.asarray, MjxParams())
+    fast, scanned = mjx_dynamics(model, 2), mjx_dynamics(model, 2, differentiable=True)
+    start = jax.jit(jax.vmap(lambda k: fast.after_reset(fast.init(k, params), params)))(jax.random.split(
+        jax.random.key(0), 4))
+    controls = jax.random.uniform(jax.random.key(1), (40, 4, 2), minval=-1.0, maxval=1.0)
+
+    def rollout(dynamics):
+        def body(d, control):
+            d = jax.vmap(dynamics.step, in_axes=(0, 0, None))(d, control, params)
+            return d, (d.qpos, d.qvel)
+        return jax.jit(lambda d: jax.lax.scan(body, d, controls)[1])(start)
+
+    for ours, theirs in zip(rollout(fast), rollout(scanned), strict=True):
+        np.testing.assert_array_equal(ours, theirs)
+    assert "while" in str(jax.make_jaxpr(lambda d: fast.step(d, controls[0, 0], params))(
+        jax.tree.map(lambda x: x[0], start)))
+
+
+def test_differentiable_dynamics_pass_gradients_through_a_one_iteration_solver():
+    """With one solver iteration (MJX's outer solver loop is a while loop otherwise) and ``differentiable=True``,
+    reverse-mode gradients flow through a step with contacts; the default while-loop line search refuses them."""
+    model = mujoco.MjModel.from_xml_string(_XML)
+    model.opt.iterations = 1
+    params = jax.tree.map(jnp.asarray, MjxParams())
+    for differentiable in (True, False):
+        dynamics = mjx_dynamics(model, 1, differentiable=differentiable)
+        data = jax.jit(lambda k: dynamics.after_reset(dynamics.init(k, params), params))(jax.random.key(0))
+        for _ in range(40):  # the box lands: the step solves contacts
+            data = jax.jit(lambda d: dynamics.step(d, jnp.zeros(2), params))(data)
+
+        def speed(control):  # the arm's joint speeds after the step, from a solve with the box's contacts
+            return dynamics.step(data, control, params).qvel[:2].sum()
+
+        if differentiable:
+            gradient = jax.jit(jax.grad(speed))(jnp.array([0.5, -0.5]))
+            assert np.all(np.isfinite(gradient)) and np.any(gradient != 0)
+        else:
+            with pytest.raises(ValueError, match="Reverse-mode differentiation does not work"):
+                jax.grad(speed)(jnp.array([0.5, -0.5]))
