@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from jarena.arenas.mjx.dynamics import while_line_search
 from jarena.core import faults
 from jarena.core.dynamics import Dynamics, Sensor
 from jarena.core.spec import Box
@@ -138,7 +139,8 @@ def brax_dynamics(env, name: str = "brax") -> Dynamics:
         # Brax's envs update ``state.metrics`` in place; give them copies so that the caller's state
         # (e.g. a transition's ``previous``) keeps its own.
         physics = physics.replace(metrics=dict(physics.metrics), info=dict(physics.info))
-        return _typed(_with_params(env, params).step(physics, jnp.asarray(control, jnp.float32)))
+        with while_line_search():  # the mjx backend: the same states as MJX's scan, sooner (jarena.arenas.mjx)
+            return _typed(_with_params(env, params).step(physics, jnp.asarray(control, jnp.float32)))
 
     size = int(env.action_size)
     return Dynamics(init=init, step=step, control_spec=Box(-np.ones(size), np.ones(size), dtype=jnp.float32),
