@@ -21,8 +21,18 @@ world_model = dict(num_arenas=8, rollout_length=8, train_steps=2, batch_size=8, 
 small = {"ppo": dict(num_arenas=32, rollout_length=16, minibatches=4, epochs=2, hidden=(64, 64), total_steps=2048),
          "sac": dict(num_arenas=32, batch_size=256, buffer_size=4096, learning_starts=0, total_steps=4096),
          "planet": dict(world_model, horizon=4, samples=16, iterations=2),
-         "dreamer": dict(world_model, imagination_horizon=4)}[name]
-agent = jarena_agents.build_agent(name, dict(jarena.retrieve_config(name, arena), **small))
+         "dreamer": dict(world_model, imagination_horizon=4),
+         "diffusion": dict(batch_size=64, horizon=8, action_steps=4, down_dims=[16, 32], groups=4, step_embedding=16,
+                           warmup_steps=1, total_steps=8)}[name]
+if name == "diffusion":  # trained from demonstrations: a few of the pendulum oracle's
+    import tempfile
+    from jarena.data import TrajectoryDataset, configs_for
+    small["dataset"] = path = tempfile.mkdtemp() + "/demos"
+    with TrajectoryDataset(path, "w", **configs_for(arena)) as dataset:
+        jarena.collect(jarena_agents.build_agent("oracle_pendulum"), arena, dataset, 4, key=jax.random.key(1),
+                       num_arenas=4, progress=False)
+committed = {} if name == "diffusion" else jarena.retrieve_config(name, arena)
+agent = jarena_agents.build_agent(name, dict(committed, **small))
 flops, states = {}, {}
 for devices in (1, 4):
     mesh = distributed.mesh(devices)
@@ -41,12 +51,13 @@ print("PER-DEVICE FLOPS RATIO", flops[4] / flops[1])
 """
 
 
-@pytest.mark.parametrize("agent", ["ppo", "sac", "planet", "dreamer"])
+@pytest.mark.parametrize("agent", ["ppo", "sac", "planet", "dreamer", "diffusion"])
 def test_each_of_four_devices_computes_about_a_quarter_of_an_update_and_the_same_numbers(agent):
     # before their minibatches were split, XLA gave every device the whole of each minibatch: each of 4 devices
     # did 0.68 of one device's work for ppo, 0.99 for sac, 0.62 for planet and 1.0 for dreamer; the ideal is 0.25
     # (what stays replicated is small). Two updates on 4 devices leave every float of the train state (networks,
-    # optimiser, buffer, arenas) at one device's values
+    # optimiser, buffer, arenas) at one device's values. diffusion (trained from a dataset, as `jarena train
+    # diffusion ... --devices N` runs it) splits its minibatch likewise
     env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
     out = subprocess.run([sys.executable, "-c", PER_DEVICE_WORK, agent], env=env, capture_output=True, text=True,
                          timeout=600)
