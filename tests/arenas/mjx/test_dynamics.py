@@ -92,8 +92,13 @@ def test_the_while_line_search_steps_a_batch_to_the_same_bits_as_mjx_scan():
 
     for ours, theirs in zip(rollout(fast), rollout(scanned), strict=True):
         np.testing.assert_array_equal(ours, theirs)
-    assert "while" in str(jax.make_jaxpr(lambda d: fast.step(d, controls[0, 0], params))(
-        jax.tree.map(lambda x: x[0], start)))
+    one = jax.tree.map(lambda x: x[0], start)
+    programs = [str(jax.make_jaxpr(lambda d, dyn=dyn: dyn.step(d, controls[0, 0], params))(one))
+                for dyn in (fast, scanned)]
+    # the two line searches (one per physics step of the loop's two copies): scans with a cond in MJX's form,
+    # while loops in ours (the solver's own outer loop is a while loop in both)
+    assert [p.count("while[") - programs[1].count("while[") for p in programs] == [2, 0]
+    assert [p.count("cond[") for p in programs] == [0, 2]
 
 
 def test_differentiable_dynamics_pass_gradients_through_a_one_iteration_solver():
