@@ -89,7 +89,8 @@ def initialize(key, data, dynamics_params, params):
 
     def step(i, d):
         d = observe_state(m, d)
-        return integrate(m, d.replace(qpos=jnp.where(i == 0, randomized, d.qpos)))
+        # the line search as a while loop, as the arena's steps run it: the same states, sooner
+        return integrate(m, d.replace(qpos=jnp.where(i == 0, randomized, d.qpos)), differentiable=False)
 
     settled = jax.lax.fori_loop(0, _SETTLE_STEPS, step, start)
     return data.replace(qpos=settled.qpos, qvel=settled.qvel, act=settled.act, ctrl=jnp.zeros_like(data.ctrl),
