@@ -6,7 +6,8 @@
 # Usage, on the GPU machine from the project root after `source .gpu/setup.sh`:
 #   bash benchmarks/dreamer_precision_check.sh ["ARENA" ["CHEAPER_ARENA"]]
 # CHEAPER_ARENA (default: the walker on Playground's solver options, as PPO's walker run trained) is timed for
-# collection alone (no gradient steps) and with the default update.
+# collection alone (no gradient steps) and with the default update. ARENA's collection is also timed with MJX's own
+# line search (differentiable:true, a fixed-length scan), against the while loop the arenas run by default.
 set -u
 cd "$(dirname "$0")"
 D=${1:-"dmc|domain:walker,task:walk"}
@@ -20,6 +21,7 @@ VARIANTS=(  # arena|settings
   "$D|--set num_arenas=64 --set batch_size=64"
   "$D|--set num_arenas=64 --set batch_size=64 --set compute_dtype=bfloat16"
   "$D|--set learning_starts=100000000"
+  "$D,differentiable:true|--set learning_starts=100000000"
   "$PG|--set learning_starts=100000000"
   "$PG|--set num_arenas=64 --set learning_starts=100000000"
   "$PG|"
