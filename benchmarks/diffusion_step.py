@@ -13,6 +13,7 @@ updates would take at the faster rate.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 
 import jax
@@ -42,10 +43,15 @@ def main() -> None:
     agent = jarena_agents.build_agent("diffusion", config)
     start = agent.init_training(jax.random.key(0), arena)
 
+    library = networks.convolve
+
     def maker(method):
-        def run(train_state):
-            networks.CONVOLUTION = method  # read while this program is traced
-            return agent.train(train_state, arena, args.updates)[0]
+        def run(train_state):  # Conv calls networks.convolve when the program is traced: the method is fixed there
+            networks.convolve = functools.partial(library, method=method)
+            try:
+                return agent.train(train_state, arena, args.updates)[0]
+            finally:
+                networks.convolve = library
         return lambda: (run, start, args.updates)
 
     methods = args.methods.split(",")

@@ -47,6 +47,9 @@ from jarena.platform import enable_compilation_cache
 from jarena.runners.evaluate import evaluate
 from jarena.training import train_and_evaluate
 
+#: The agents this script trains from the dataset, each from its committed cloth config.
+AGENTS = ("planet", "bc", "diffusion")
+
 
 def arena_string(particles: int, resolution: int, actions: int, episodes: int) -> str:
     return (f"cloth|domain:square_fabric,initial:crumpled,particles:{particles},resolution:{resolution},depth:false,"
@@ -116,15 +119,12 @@ def main() -> None:
     parser.add_argument("--actions", type=int, default=10, help="pick-and-place actions per episode")
     parser.add_argument("--episodes", type=int, default=128, help="eval episodes")
     parser.add_argument("--batch", type=int, default=128, help="arenas collected in parallel")
-    parser.add_argument("--planet-steps", type=int, default=None, help="planet's gradient updates (default: config)")
-    parser.add_argument("--bc-steps", type=int, default=None, help="bc's gradient updates (default: config)")
-    parser.add_argument("--diffusion-steps", type=int, default=None,
-                        help="diffusion's gradient updates (default: config)")
-    parser.add_argument("--agents", default="planet,bc", help="comma-separated agents to train: planet, bc, diffusion")
-    parser.add_argument("--set-planet", action="append", default=[], metavar="KEY=VALUE", help="planet config key")
-    parser.add_argument("--set-bc", action="append", default=[], metavar="KEY=VALUE", help="bc config key")
-    parser.add_argument("--set-diffusion", action="append", default=[], metavar="KEY=VALUE",
-                        help="diffusion config key")
+    for name in AGENTS:
+        parser.add_argument(f"--{name}-steps", type=int, default=None,
+                            help=f"{name}'s gradient updates (default: config)")
+        parser.add_argument(f"--set-{name}", action="append", default=[], metavar="KEY=VALUE",
+                            help=f"{name} config key")
+    parser.add_argument("--agents", default="planet,bc", help=f"comma-separated agents to train: {', '.join(AGENTS)}")
     parser.add_argument("--set-oracle", action="append", default=[], metavar="KEY=VALUE",
                         help="oracle_cloth_flattening config key (the demonstrations' oracle)")
     parser.add_argument("--seed", type=int, default=0)
@@ -136,12 +136,12 @@ def main() -> None:
     devices = args.devices if args.devices in (None, "all") else int(args.devices)
     print(f"{jax.devices()[0].device_kind}, jax {jax.__version__}, Python {platform.python_version()}", flush=True)
     agents = args.agents.split(",")
-    unknown = sorted(set(agents) - {"planet", "bc", "diffusion"})
+    unknown = sorted(set(agents) - set(AGENTS))
     if unknown:
-        parser.error(f"unknown agents {unknown}; choose from planet, bc, diffusion")
-    configs = {"planet": overrides(args.set_planet), "bc": overrides(args.set_bc),
-               "diffusion": overrides(args.set_diffusion)}
-    for name, steps in (("planet", args.planet_steps), ("bc", args.bc_steps), ("diffusion", args.diffusion_steps)):
+        parser.error(f"unknown agents {unknown}; choose from {', '.join(AGENTS)}")
+    configs = {name: overrides(getattr(args, f"set_{name}")) for name in AGENTS}
+    for name in AGENTS:
+        steps = getattr(args, f"{name}_steps")
         if steps is not None:
             configs[name]["total_steps"] = steps
     oracle_config = overrides(args.set_oracle)

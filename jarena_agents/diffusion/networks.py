@@ -22,7 +22,6 @@ import jax.numpy as jnp
 from jarena_agents.networks import init_params, spatial_softmax  # noqa: F401  (init_params: the agent reads it here)
 
 GROUP_NORM_EPSILON = 1e-5
-CONVOLUTION = "auto"  # how Conv convolves (:func:`convolve`'s method), read when a program is traced
 
 
 def unfold(x: jax.Array, size: Sequence[int], strides: Sequence[int], padding: Sequence[tuple[int, int]]) -> jax.Array:
@@ -63,7 +62,7 @@ def convolve(x: jax.Array, kernel: jax.Array, strides: Sequence[int], padding: S
     if method == "auto":
         method = "xla" if rank >= 2 and jax.default_backend() != "cpu" else "matmul"
     if method == "xla":
-        spatial = "DHW"[-rank:] if rank <= 3 else None
+        spatial = "DHW"[-rank:]
         numbers = (f"N{spatial}C", f"{spatial}IO", f"N{spatial}C")
         return jax.lax.conv_general_dilated(x, kernel.astype(x.dtype), tuple(strides), [tuple(p) for p in padding],
                                             lhs_dilation=(dilation,) * rank, dimension_numbers=numbers)
@@ -74,10 +73,9 @@ def convolve(x: jax.Array, kernel: jax.Array, strides: Sequence[int], padding: S
 
 
 class Conv(nn.Module):
-    """A convolution, channels last, by :func:`convolve` with the method :data:`CONVOLUTION` (``"auto"``: XLA's
-    operator for 2-D convolutions off the CPU, a matrix product otherwise); kernel (*size, C, O). ``dilation`` spreads the input first
-    (zeros between steps, 1-D): with ``padding`` (k - 1 - p) on each side, the transposed convolution that doubles
-    a length.
+    """A convolution, channels last, by :func:`convolve` (XLA's operator for 2-D convolutions off the CPU, a matrix
+    product otherwise); kernel (*size, C, O). ``dilation`` spreads the input first (zeros between steps, 1-D): with
+    ``padding`` (k - 1 - p) on each side, the transposed convolution that doubles a length.
     """
 
     features: int
@@ -93,7 +91,7 @@ class Conv(nn.Module):
         strides = tuple(self.strides or (1,) * len(size))
         padding = self.padding if self.padding is not None else [(0, 0)] * len(size)
         kernel = self.param("kernel", nn.initializers.lecun_normal(), size + (x.shape[-1], self.features))
-        y = convolve(x, kernel, strides, padding, self.dilation, CONVOLUTION)
+        y = convolve(x, kernel, strides, padding, self.dilation)
         return y + self.param("bias", nn.initializers.zeros, (self.features,)) if self.use_bias else y
 
 

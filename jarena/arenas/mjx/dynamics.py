@@ -15,9 +15,9 @@ vmap over them for domain randomisation per episode.
 The constraint solver's line search runs as a ``lax.while_loop`` (:func:`while_line_search`): MJX writes it as a
 ``lax.scan`` of ``ls_iterations`` steps that idle once it has converged, so that reverse-mode gradients flow through
 it, and under ``vmap`` an idle step costs as much as a working one. The while loop stops when the batch's slowest
-search has converged: the same states to the bit, in less time (a vmapped control step of 16 arenas on 2 CPU cores:
-walker 10.7 -> 6.7 ms, cheetah 5.3 -> 2.3, humanoid 94 -> 58). ``differentiable=True`` keeps MJX's scan, for
-gradients through the physics.
+search has converged: the same states to the bit, in less time (16 arenas on 2 CPU cores: 1.62x the env-steps/s for
+walker, 2.12x cheetah, 1.40x humanoid; ``benchmarks/mjx_throughput.py``, variant ``ours-scan``).
+``differentiable=True`` keeps MJX's scan, for gradients through the physics.
 """
 
 from __future__ import annotations
