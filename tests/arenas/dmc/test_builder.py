@@ -1,3 +1,5 @@
+import jax
+import jax.numpy as jnp
 import mujoco
 import pytest
 
@@ -118,3 +120,18 @@ def test_auto_reset_is_a_build_option_and_suite_domains_default_to_lazy():
     assert jax.tree_util.tree_structure(stepped) == jax.tree_util.tree_structure(states)
     with pytest.raises(ArenaStringError, match="unknown auto_reset 'sometimes'"):
         jarena.build_arena("dmc|domain:cheetah,task:run,auto_reset:sometimes")
+
+
+def test_differentiable_is_a_build_option():
+    """``differentiable:true`` reaches the dynamics (MJX's line-search scan, a cond in each of its steps, instead of
+    the default while loop); a value other than true or false is refused, naming the choices."""
+    arenas = [jarena.build_arena(f"dmc|domain:walker,task:walk{extra}") for extra in ("", ",differentiable:true")]
+    programs = []
+    for arena in arenas:
+        dynamics, params = arena.dynamics, arena.default_params().dynamics
+        data = dynamics.init(jax.random.key(0), params)
+        programs.append(str(jax.make_jaxpr(lambda d, dyn=dynamics, p=params: dyn.step(
+            d, jnp.zeros(dyn.control_spec.shape), p))(data)))
+    assert programs[0].count("cond[") < programs[1].count("cond[")
+    with pytest.raises(ValueError, match="differentiable must be true or false, got 3"):
+        jarena.build_arena("dmc|domain:walker,task:walk,differentiable:3")
