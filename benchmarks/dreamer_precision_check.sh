@@ -28,12 +28,12 @@ VARIANTS=(  # arena|settings
 )
 for v in "${VARIANTS[@]}"; do
   # shellcheck disable=SC2086  # the settings split into words on purpose
-  XLA_PYTHON_CLIENT_PREALLOCATE=false timeout 900 python dreamer_step.py "${v%%|*}" --compile-only ${v#*|} \
+  XLA_PYTHON_CLIENT_PREALLOCATE=false timeout 900 python dreamer_step.py "${v%|*}" --compile-only ${v##*|} \
     >> "$R/dreamer_precision_compile.jsonl" 2>> "$R/dreamer_precision.err" &
 done
 wait
 for v in "${VARIANTS[@]}"; do
   # shellcheck disable=SC2086
-  timeout 600 python dreamer_step.py "${v%%|*}" ${v#*|} >> "$R/dreamer_precision.jsonl" 2>> "$R/dreamer_precision.err"
+  timeout 600 python dreamer_step.py "${v%|*}" ${v##*|} >> "$R/dreamer_precision.jsonl" 2>> "$R/dreamer_precision.err"
 done
 cat "$R/dreamer_precision.jsonl"
