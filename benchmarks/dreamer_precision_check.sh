@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Dreamer's update time by precision, batch and physics on one GPU, each variant timed alone: all variants first compile
-# side by side into the persistent compilation cache (compilation runs on the CPU cores), then each is timed in
-# turn with nothing else on the GPU (a GPU time-slices between processes, so side-by-side timings mean nothing).
+# Dreamer's update time by precision, batch and physics on one GPU, each variant timed alone: the variants first compile
+# into the persistent compilation cache, COMPILE_JOBS at a time (default 2: five of Dreamer's programs compiling at
+# once on 16 cores had not finished after 7 minutes), then each is timed in turn with nothing else on the GPU (a GPU
+# time-slices between processes, so side-by-side timings mean nothing).
 # One JSON line per variant in RESULTS_DIR/dreamer_precision.jsonl (default /tmp/res).
 # Usage, on the GPU machine from the project root after `source .gpu/setup.sh`:
 #   bash benchmarks/dreamer_precision_check.sh ["ARENA" ["CHEAPER_ARENA"]]
@@ -30,6 +31,7 @@ for v in "${VARIANTS[@]}"; do
   # shellcheck disable=SC2086  # the settings split into words on purpose
   XLA_PYTHON_CLIENT_PREALLOCATE=false timeout 900 python dreamer_step.py "${v%|*}" --compile-only ${v##*|} \
     >> "$R/dreamer_precision_compile.jsonl" 2>> "$R/dreamer_precision.err" &
+  while [ "$(jobs -rp | wc -l)" -ge "${COMPILE_JOBS:-2}" ]; do wait -n; done
 done
 wait
 for v in "${VARIANTS[@]}"; do

@@ -57,7 +57,7 @@ def main() -> None:
     overrides = dict(args.set)
     base = jarena.retrieve_config(args.agent, arena, args.config)
     # learning starts once every arena holds one sequence (unless overridden), so the timed chunks train
-    config = dict(base, learning_starts=0, **overrides)
+    config = {**base, "learning_starts": 0, **overrides}
     agent = jarena_agents.build_agent(args.agent, config)
     cfg = agent.settings
     warmup = -(-(cfg.sequence_length + 1) // cfg.rollout_length)  # updates until every arena holds a sequence
