@@ -597,7 +597,7 @@ def _write_csv(path: Path, rows: list[dict[str, float]]) -> None:
 
 def _plot(path: Path, history, validations, evaluation, agent: str, arena: str, substeps: int = 1) -> None:
     """Returns against steps: training episodes, validations, the evaluated policy and its final evaluation; with
-    ``select`` ``best:<metric>``, that validation metric on a second axis. A run without training episodes (an
+    ``select`` ``best:<metric>``, that validation metric and the final evaluation's on a second axis. A run without training episodes (an
     agent learning from a dataset) is plotted against its updates."""
     try:
         import matplotlib
@@ -619,12 +619,17 @@ def _plot(path: Path, history, validations, evaluation, agent: str, arena: str, 
                 label=f"evaluated policy ({selected['select']}, step {selected['env_steps']})")
     ax.axhline(evaluation.summary()["return_mean"], color="k", ls="--",
                label=f"final evaluation of that policy ({evaluation.summary()['return_mean']:.4g})")
+    _show_level(ax, evaluation.summary()["return_mean"])
     handles, labels = ax.get_legend_handles_labels()
     metric = str(selected.get("select", ""))[5:] if str(selected.get("select", "")).startswith("best:") else ""
     if metric and validations and metric in validations[0]:
         twin = ax.twinx()
         twin.plot([r["env_steps"] for r in validations], [r[metric] for r in validations], "s:", color="C2",
                   label=f"validation {metric} (right axis)")
+        final = evaluation.summary().get(metric)
+        if final is not None and np.isfinite(final):
+            twin.axhline(final, color="C2", ls="--", label=f"final evaluation's {metric} ({final:.4g})")
+            _show_level(twin, final)
         twin.set_ylabel(metric)
         extra_handles, extra_labels = twin.get_legend_handles_labels()
         handles, labels = handles + extra_handles, labels + extra_labels
@@ -639,6 +644,15 @@ def _plot(path: Path, history, validations, evaluation, agent: str, arena: str, 
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def _show_level(ax, level: float) -> None:
+    """Widens ``ax``'s y-range so that a horizontal line at ``level`` sits inside it, off the frame."""
+    if not np.isfinite(level):
+        return
+    low, high = ax.get_ylim()
+    pad = 0.05 * max(high - low, abs(level) * 0.1, 1e-6)
+    ax.set_ylim(min(low, level - pad), max(high, level + pad))
 
 
 class _TensorBoard:

@@ -250,3 +250,21 @@ def test_the_command_line_trains_several_seeds_at_once(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "seeds 5 to 6, at once" in out and "all 2 |" in out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["config.json", "seed_5", "seed_6", "seeds.csv"]
+
+
+def test_a_final_evaluation_line_outside_the_plotted_returns_widens_the_range_to_show_it():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from jarena.training import _show_level
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [60.0, 95.0])
+    low, high = ax.get_ylim()
+    _show_level(ax, 96.3)  # above every plotted point: pushed off the frame without the widening
+    assert ax.get_ylim()[0] == low and ax.get_ylim()[1] > 96.3 + 1.0
+    _show_level(ax, 80.0)  # already inside: unchanged
+    assert ax.get_ylim()[1] > 96.3 + 1.0 and ax.get_ylim()[0] == low
+    plt.close(fig)
