@@ -23,7 +23,7 @@ variants so that load changes weigh on all alike. Variants:
   its Brax-training wrapper (episode length 1000, auto-reset), as Playground's trainers step it.
 - ``ours-scan`` (dmc only): ours with ``differentiable:true``: the constraint solver's line search as MJX writes
   it (a fixed-length ``lax.scan`` whose steps idle once it has converged, as ``raw`` runs it) instead of ours'
-  while loop; the same states to the bit.
+  while loop (the same states, to the bit or within float32 rounding).
 - ``ours-noreset``, ``ours-pg-noreset`` and ``ours-select`` (diagnostics): the arena step without
   auto-reset (suite options, Playground's options), and with the select-based auto-reset (a reset computed
   for every arena at every step) instead of the lazy one.

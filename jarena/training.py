@@ -597,8 +597,8 @@ def _write_csv(path: Path, rows: list[dict[str, float]]) -> None:
 
 def _plot(path: Path, history, validations, evaluation, agent: str, arena: str, substeps: int = 1) -> None:
     """Returns against steps: training episodes, validations, the evaluated policy and its final evaluation; with
-    ``select`` ``best:<metric>``, that validation metric and the final evaluation's on a second axis. A run without training episodes (an
-    agent learning from a dataset) is plotted against its updates."""
+    ``select`` ``best:<metric>``, that validation metric and the final evaluation's on a second axis. A run without
+    training episodes (an agent learning from a dataset) is plotted against its updates."""
     try:
         import matplotlib
 

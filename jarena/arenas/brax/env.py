@@ -139,7 +139,7 @@ def brax_dynamics(env, name: str = "brax") -> Dynamics:
         # Brax's envs update ``state.metrics`` in place; give them copies so that the caller's state
         # (e.g. a transition's ``previous``) keeps its own.
         physics = physics.replace(metrics=dict(physics.metrics), info=dict(physics.info))
-        with while_line_search():  # the mjx backend: the same states as MJX's scan, sooner (jarena.arenas.mjx)
+        with while_line_search():  # the mjx backend: MJX's states or within rounding, sooner (jarena.arenas.mjx)
             return _typed(_with_params(env, params).step(physics, jnp.asarray(control, jnp.float32)))
 
     size = int(env.action_size)

@@ -15,9 +15,11 @@ vmap over them for domain randomisation per episode.
 The constraint solver's line search runs as a ``lax.while_loop`` (:func:`while_line_search`): MJX writes it as a
 ``lax.scan`` of ``ls_iterations`` steps that idle once it has converged, so that reverse-mode gradients flow through
 it, and under ``vmap`` an idle step costs as much as a working one. The while loop stops when the batch's slowest
-search has converged: the same states to the bit, in less time (16 arenas on 2 CPU cores: 1.62x the env-steps/s for
-walker, 2.12x cheetah, 1.40x humanoid; ``benchmarks/mjx_throughput.py``, variant ``ours-scan``).
-``differentiable=True`` keeps MJX's scan, for gradients through the physics.
+search has converged, and also, as C MuJoCo's search does, once it is at a minimum it cannot improve on in float32
+(:func:`_search_loop`): the same states as MJX's scan to the bit on most models, within float32 rounding on the
+others, in less time (16 arenas on 2 CPU cores: 2.42x the env-steps/s for walker, 5.13x cheetah, 1.72x humanoid;
+``benchmarks/mjx_throughput.py``, variant ``ours-scan``). ``differentiable=True`` keeps MJX's scan, for gradients
+through the physics.
 """
 
 from __future__ import annotations
@@ -74,23 +76,57 @@ def apply_params(model: mjx.Model, params: MjxParams) -> mjx.Model:
 _LINE_SEARCH_LOCK = threading.RLock()
 
 
-def _while_loop(cond_fun, body_fun, init_val, max_iter):
-    """MJX's bounded loop (``solver._while_loop_scan``: ``body_fun`` while ``cond_fun``, at most ``max_iter``
-    times) as a ``lax.while_loop``: the same iterations, none after the condition fails."""
+def _search_loop(cond_fun, body_fun, init_val, max_iter):
+    """MJX's bounded line-search loop (``solver._while_loop_scan``: ``body_fun`` while ``cond_fun``, at most
+    ``max_iter`` times) as a ``lax.while_loop``, returning the final value and the steps taken.
+
+    One exit is added, C MuJoCo's "initial convergence" that MJX's float32 search lacks: the search stops once an end
+    of its bracket is flat (its slope under the search's own acceptance tolerance) while neither end costs less than
+    the start. On a convex line cost a flat end is the minimum, so nothing lower remains but float32 rounding; MJX
+    would halve the bracket until it collapses (about 24 steps, one search in ten on the suite's walker) and then,
+    having found no lower cost, not move, as the search stopped here does not. Skipped (MJX's iterations exactly) if
+    this MJX version's search names its tolerance or start point otherwise.
+    """
+    converged_at_start = _converged_at_start(cond_fun)
+
     def cond(carry):
-        return (carry[1] < max_iter) & cond_fun(carry[0])
+        go = (carry[1] < max_iter) & cond_fun(carry[0])
+        return go if converged_at_start is None else go & ~converged_at_start(carry[0])
 
     def body(carry):
         return body_fun(carry[0]), carry[1] + 1
 
-    return jax.lax.while_loop(cond, body, (init_val, jnp.zeros((), jnp.int32)))[0]
+    return jax.lax.while_loop(cond, body, (init_val, jnp.zeros((), jnp.int32)))
+
+
+def _converged_at_start(cond_fun) -> Callable | None:
+    """From MJX's line-search condition (a closure over the start point ``p0`` and the acceptance tolerance
+    ``gtol_accept``): ``ctx -> bool``, an end of the bracket flat and neither end below the start's cost; None when
+    the closure does not hold both."""
+    names = getattr(getattr(cond_fun, "__code__", None), "co_freevars", ())
+    cells = dict(zip(names, (cell.cell_contents for cell in (cond_fun.__closure__ or ())), strict=False))
+    start, tolerance = cells.get("p0"), cells.get("gtol_accept")
+    if start is None or tolerance is None or not hasattr(start, "cost"):
+        return None
+
+    def converged(ctx) -> jax.Array:
+        lo, hi = ctx.lo, ctx.hi
+        flat = (jnp.abs(lo.deriv_0) < tolerance) | (jnp.abs(hi.deriv_0) < tolerance)
+        return flat & (lo.cost >= start.cost) & (hi.cost >= start.cost)
+
+    return converged
+
+
+def _while_loop(cond_fun, body_fun, init_val, max_iter):
+    """:func:`_search_loop`'s final value: what replaces ``solver._while_loop_scan``."""
+    return _search_loop(cond_fun, body_fun, init_val, max_iter)[0]
 
 
 @contextlib.contextmanager
 def while_line_search() -> Iterator[None]:
     """While tracing inside it, MJX's constraint solver runs its line search as a ``lax.while_loop`` instead of a
-    fixed-length ``lax.scan`` (the same states to the bit; not reverse-mode differentiable). A no-op if this MJX
-    version names its loop otherwise."""
+    fixed-length ``lax.scan`` (:func:`_search_loop`: the same states, to the bit or within float32 rounding; not
+    reverse-mode differentiable). A no-op if this MJX version names its loop otherwise."""
     if not hasattr(mjx_solver, "_while_loop_scan"):
         yield
         return

@@ -290,7 +290,7 @@ def raven_dynamics(scene: Scene, substeps: int = 4, render: Callable | None = No
     def step(physics, control, params):
         physics = move_cup(physics, control)
         model = _with_grasp(_with_shapes(apply_params(device_model, params), physics), physics.grasp)
-        with while_line_search():  # the same states as MJX's scan, sooner (jarena.arenas.mjx.dynamics)
+        with while_line_search():  # MJX's states or within rounding, sooner (jarena.arenas.mjx.dynamics)
             data = jax.lax.fori_loop(0, substeps, lambda _, d: mjx.step(model, d), physics.data)
         physics = physics.replace(data=mjx.kinematics(model, data))
         return physics.replace(slip=jnp.maximum(physics.slip, grasp_error(physics)))
