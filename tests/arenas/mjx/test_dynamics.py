@@ -148,13 +148,12 @@ def test_the_installed_mjx_line_search_takes_the_flat_start_exit():
         found.append(plain(cond_fun) is not None)
         return plain(cond_fun)
 
-    model = mujoco.MjModel.from_xml_string(_XML)
-    params = jax.tree.map(jnp.asarray, MjxParams())
-    dynamics = mjx_dynamics(model, 1)
-    data = dynamics.after_reset(dynamics.init(jax.random.key(0), params), params)
+    model = mjx.put_model(mujoco.MjModel.from_xml_string(_XML))
+    data = jax.jit(mjx.forward)(model, mjx.make_data(model))
     dynamics_module._converged_at_start = spy
     try:
-        jax.make_jaxpr(lambda d: dynamics.step(d, jnp.zeros(2), params))(data)
+        with dynamics_module.while_line_search():  # what the arenas' steps trace the solver inside
+            jax.make_jaxpr(lambda d: mjx.solve(model, d))(data)
     finally:
         dynamics_module._converged_at_start = plain
     assert found and all(found), found
@@ -169,8 +168,9 @@ def test_differentiable_dynamics_pass_gradients_through_a_one_iteration_solver()
     for differentiable in (True, False):
         dynamics = mjx_dynamics(model, 1, differentiable=differentiable)
         data = jax.jit(lambda k: dynamics.after_reset(dynamics.init(k, params), params))(jax.random.key(0))
+        rest = jax.jit(lambda d, dynamics=dynamics: dynamics.step(d, jnp.zeros(2), params))  # compiled once
         for _ in range(40):  # the box lands: the step solves contacts
-            data = jax.jit(lambda d: dynamics.step(d, jnp.zeros(2), params))(data)
+            data = rest(data)
 
         def speed(control):  # the arm's joint speeds after the step, from a solve with the box's contacts
             return dynamics.step(data, control, params).qvel[:2].sum()
