@@ -44,18 +44,8 @@ def counted_loops(flat_start_exit: bool = True):
             jax.debug.callback(lambda n: SOLVES.append(np.asarray(n).reshape(-1)), out.solver_niter)
         return out
 
-    def mjx_only(cond_fun, body_fun, init_val, max_iter):
-        def cond(carry):
-            return (carry[1] < max_iter) & cond_fun(carry[0])
-
-        def body(carry):
-            return body_fun(carry[0]), carry[1] + 1
-
-        return plain_while(cond, body, (init_val, jnp.zeros((), jnp.int32)))
-
     def search(cond_fun, body_fun, init_val, max_iter):
-        loop = mjx_dynamics._search_loop if flat_start_exit else mjx_only
-        out, steps = loop(cond_fun, body_fun, init_val, max_iter)
+        out, steps = mjx_dynamics._search_loop(cond_fun, body_fun, init_val, max_iter, flat_start_exit)
         jax.debug.callback(lambda n: SEARCHES.append(np.asarray(n).reshape(-1)), steps)
         return out
 

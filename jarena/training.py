@@ -617,16 +617,17 @@ def _plot(path: Path, history, validations, evaluation, agent: str, arena: str, 
     if selected.get("validation_return") is not None:
         ax.plot([selected["env_steps"]], [selected["validation_return"]], "*", color="C3", markersize=14,
                 label=f"evaluated policy ({selected['select']}, step {selected['env_steps']})")
-    ax.axhline(evaluation.summary()["return_mean"], color="k", ls="--",
-               label=f"final evaluation of that policy ({evaluation.summary()['return_mean']:.4g})")
-    _show_level(ax, evaluation.summary()["return_mean"])
+    summary = evaluation.summary()
+    ax.axhline(summary["return_mean"], color="k", ls="--",
+               label=f"final evaluation of that policy ({summary['return_mean']:.4g})")
+    _show_level(ax, summary["return_mean"])
     handles, labels = ax.get_legend_handles_labels()
     metric = str(selected.get("select", ""))[5:] if str(selected.get("select", "")).startswith("best:") else ""
     if metric and validations and metric in validations[0]:
         twin = ax.twinx()
         twin.plot([r["env_steps"] for r in validations], [r[metric] for r in validations], "s:", color="C2",
                   label=f"validation {metric} (right axis)")
-        final = evaluation.summary().get(metric)
+        final = summary.get(metric)
         if final is not None and np.isfinite(final):
             twin.axhline(final, color="C2", ls="--", label=f"final evaluation's {metric} ({final:.4g})")
             _show_level(twin, final)

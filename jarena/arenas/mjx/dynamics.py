@@ -76,7 +76,7 @@ def apply_params(model: mjx.Model, params: MjxParams) -> mjx.Model:
 _LINE_SEARCH_LOCK = threading.RLock()
 
 
-def _search_loop(cond_fun, body_fun, init_val, max_iter):
+def _search_loop(cond_fun, body_fun, init_val, max_iter, flat_start_exit: bool = True):
     """MJX's bounded line-search loop (``solver._while_loop_scan``: ``body_fun`` while ``cond_fun``, at most
     ``max_iter`` times) as a ``lax.while_loop``, returning the final value and the steps taken.
 
@@ -85,9 +85,9 @@ def _search_loop(cond_fun, body_fun, init_val, max_iter):
     the start. On a convex line cost a flat end is the minimum, so nothing lower remains but float32 rounding; MJX
     would halve the bracket until it collapses (about 24 steps, one search in ten on the suite's walker) and then,
     having found no lower cost, not move, as the search stopped here does not. Skipped (MJX's iterations exactly) if
-    this MJX version's search names its tolerance or start point otherwise.
+    this MJX version's search names its tolerance or start point otherwise, or with ``flat_start_exit`` false.
     """
-    converged_at_start = _converged_at_start(cond_fun)
+    converged_at_start = _converged_at_start(cond_fun) if flat_start_exit else None
 
     def cond(carry):
         go = (carry[1] < max_iter) & cond_fun(carry[0])
