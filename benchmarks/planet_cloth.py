@@ -6,8 +6,11 @@ diffusion updates).
     python benchmarks/planet_cloth.py --demos 256 --run-dir runs/planet_cloth
 
 1. ``jarena.collect``: ``--demos`` episodes of ``oracle_cloth_flattening`` (training episodes) into a dataset, then
-   ``--random`` episodes of the ``random`` agent appended to it (default none: the oracle's demonstrations alone,
-   as bc's cloth results were collected; a world model may need the random actions, see docs/agents/planet.md);
+   ``--noisy`` episodes of the same oracle acting with noise (``jarena_agents.noisy``: ``--action-noise`` half
+   ranges of Gaussian noise, ``--random-actions`` of its actions uniformly random; Agent-Arena's cloth datasets mix
+   oracle demonstrations with noisier ones so), then ``--random`` episodes of the ``random`` agent (default neither:
+   the oracle's demonstrations alone, as bc's cloth results were collected; a world model may need the others, see
+   docs/agents/planet.md);
    ``--set-oracle KEY=VALUE`` sets the oracle's config keys (e.g. ``interior=0 outward=0.15 tips=false``, the
    lookahead of 2026-11-25 that bc's first cloth results cloned);
 2. ``train_and_evaluate``: each of ``--agents`` (default ``planet,bc``; also ``diffusion``) offline on that dataset
@@ -60,7 +63,8 @@ def overrides(items: list[str]) -> dict:
     return {k: yaml.safe_load(v) for k, v in (item.split("=", 1) for item in items)}
 
 
-def collect(arena, path: Path, demos: int, random: int, seed: int, batch: int, oracle_config: dict) -> dict:
+def collect(arena, path: Path, demos: int, random: int, seed: int, batch: int, oracle_config: dict,
+            noisy: int = 0, action_noise: float = 0.1, random_actions: float = 0.1) -> dict:
     """Writes the dataset; returns what it holds and the seconds it took."""
     start = time.perf_counter()
     with TrajectoryDataset(path, "w", **configs_for(arena)) as dataset:
@@ -68,6 +72,10 @@ def collect(arena, path: Path, demos: int, random: int, seed: int, batch: int, o
         jarena.collect(oracle, arena, dataset, demos, key=jax.random.key(seed + 1_000), num_arenas=min(batch, demos),
                        progress=False)
         oracle_s = time.perf_counter() - start
+        if noisy:
+            jarena.collect(jarena_agents.noisy(oracle, action_noise=action_noise, random_fraction=random_actions),
+                           arena, dataset, noisy, key=jax.random.key(seed + 3_000), num_arenas=min(batch, noisy),
+                           progress=False)
         if random:
             jarena.collect(jarena_agents.build_agent("random"), arena, dataset, random,
                            key=jax.random.key(seed + 2_000), num_arenas=min(batch, random), progress=False)
@@ -75,7 +83,8 @@ def collect(arena, path: Path, demos: int, random: int, seed: int, batch: int, o
         rewards = dataset.rows("step/reward", 0, dataset.num_steps()).astype(np.float64)
         finals = rewards[np.cumsum(lengths) - 1]  # the normalised coverage after each episode's last action
     return dict(trajectories=int(lengths.size), steps=int(lengths.sum()), oracle_final=float(finals[:demos].mean()),
-                random_final=float(finals[demos:].mean()) if random else None, oracle_s=oracle_s,
+                noisy_final=float(finals[demos:demos + noisy].mean()) if noisy else None,
+                random_final=float(finals[demos + noisy:].mean()) if random else None, oracle_s=oracle_s,
                 seconds=time.perf_counter() - start)
 
 
@@ -113,6 +122,11 @@ def train(name: str, arena, dataset: Path, config: dict, seed: int, run_dir: Pat
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--demos", type=int, default=256, help="oracle episodes (bc's cloth results: 256)")
+    parser.add_argument("--noisy", type=int, default=0, help="noisy-oracle episodes appended to the dataset")
+    parser.add_argument("--action-noise", type=float, default=0.1,
+                        help="the noisy oracle's Gaussian noise, in half ranges of the action box")
+    parser.add_argument("--random-actions", type=float, default=0.1,
+                        help="the noisy oracle's fraction of uniformly random actions")
     parser.add_argument("--random", type=int, default=0, help="random-agent episodes appended to the dataset")
     parser.add_argument("--particles", type=int, default=40, help="cloth particles along a side")
     parser.add_argument("--resolution", type=int, default=64, help="camera resolution (pixels along a side)")
@@ -151,17 +165,20 @@ def main() -> None:
         root.mkdir(parents=True, exist_ok=True)
         arena = jarena.build_arena(arena_string(args.particles, args.resolution, args.actions, args.episodes))
         print(f"arena: {arena.build_string}", flush=True)
-        data = root / f"cloth_{args.demos}_oracle_{args.random}_random"
-        held = collect(arena, data, args.demos, args.random, args.seed, args.batch, oracle_config)
+        data = root / f"cloth_{args.demos}_oracle_{args.noisy}_noisy_{args.random}_random"
+        held = collect(arena, data, args.demos, args.random, args.seed, args.batch, oracle_config, args.noisy,
+                       args.action_noise, args.random_actions)
         print(f"collected {held['trajectories']} episodes ({held['steps']} actions) in {held['seconds']:.1f} s "
               f"(oracle {held['oracle_s']:.1f} s): final coverage {held['oracle_final']:.3f} (oracle)"
+              + (f", {held['noisy_final']:.3f} (noisy oracle)" if args.noisy else "")
               + (f", {held['random_final']:.3f} (random)" if args.random else ""), flush=True)
         rows = [train(name, arena, data, configs[name], args.seed, root / name, devices) for name in agents]
         start = time.perf_counter()
         rows.append(row("random", evaluate(jarena_agents.build_agent("random"), arena, jax.random.key(args.seed)),
                         0, time.perf_counter() - start))
 
-    print(f"\n{held['trajectories']} episodes ({args.demos} oracle, {args.random} random), {args.episodes} eval "
+    print(f"\n{held['trajectories']} episodes ({args.demos} oracle, {args.noisy} noisy oracle (noise "
+          f"{args.action_noise}, random {args.random_actions}), {args.random} random), {args.episodes} eval "
           f"episodes, {args.actions} actions, {args.particles} x {args.particles} cloth, {args.resolution} px")
     print("| agent | updates | train s | updates/s | eval s | final coverage (mean) | reach 0.9 | success | return |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -298,6 +299,12 @@ def _cmd_collect(args) -> int:
     arena = jarena.build_arena(args.arena)
     config = _agent_config(args, arena)
     agent = jarena_agents.build_agent(args.agent, config)
+    if not (math.isfinite(args.action_noise) and args.action_noise >= 0):
+        raise ValueError(f"--action-noise must be a finite number >= 0, got {args.action_noise}")
+    if not 0 <= args.random_actions <= 1:
+        raise ValueError(f"--random-actions must be a probability in [0, 1], got {args.random_actions}")
+    if args.action_noise or args.random_actions:  # demonstrations mixed with noisier ones
+        agent = jarena_agents.noisy(agent, action_noise=args.action_noise, random_fraction=args.random_actions)
     exists = Path(args.out, "zarr.json").is_file()
     if exists and not (args.append or args.overwrite):
         held = TrajectoryDataset(args.out).num_trajectories()
@@ -456,6 +463,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a config key of the agent (repeatable)")
     p.add_argument("--batch", type=int, default=None, metavar="B",
                    help="arenas run in parallel (default: min(N, 64), rounded up to split evenly over the devices)")
+    p.add_argument("--action-noise", type=float, default=0.0, metavar="STD",
+                   help="add Gaussian noise to the agent's float actions, STD half ranges of each element, clipped "
+                        "to the action spec (jarena_agents.noisy; default: 0)")
+    p.add_argument("--random-actions", type=float, default=0.0, metavar="P",
+                   help="in each arena and step, with probability P act uniformly at random instead (default: 0)")
     p.add_argument("--append", action="store_true",
                    help="add to the dataset at PATH (its configs must match the arena's) instead of creating one")
     p.add_argument("--overwrite", action="store_true", help="replace a dataset already at PATH")
