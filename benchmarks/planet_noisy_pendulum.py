@@ -30,8 +30,9 @@ MODEL = dict(batch_size=16, sequence_length=16, total_steps=1000, deter=32, stoc
 
 def dataset(path: Path, arena, second: str, noise: float, random_actions: float) -> str:
     oracle = jarena_agents.build_agent("oracle_pendulum")
-    others = {"random": jarena_agents.build_agent("random"), "oracle": oracle,
-              "noisy": jarena_agents.noisy(oracle, action_noise=noise, random_fraction=random_actions)}[second]
+    make = {"random": lambda: jarena_agents.build_agent("random"), "oracle": lambda: oracle,
+            "noisy": lambda: jarena_agents.noisy(oracle, action_noise=noise, random_fraction=random_actions)}
+    others = make[second]()
     with TrajectoryDataset(path, "w", **jarena.data.configs_for(arena)) as data:
         jarena.data.collect(oracle, arena, data, 16, key=jax.random.key(0), progress=False)
         jarena.data.collect(others, arena, data, 16, key=jax.random.key(1), progress=False)

@@ -56,8 +56,8 @@ def _perturb(spec: specs.Spec, action: Any, key: jax.Array, scale: float) -> Any
         keys = jax.random.split(key, max(len(spec.spaces), 1))
         return tuple(_perturb(s, a, kk, scale) for s, a, kk in zip(spec.spaces, action, keys, strict=False))
     if isinstance(spec, specs.Box) and jnp.issubdtype(spec.dtype, jnp.floating):
-        finite = np.isfinite(spec.low) & np.isfinite(spec.high)
-        half_range = np.where(finite, (np.where(finite, spec.high, 0) - np.where(finite, spec.low, 0)) / 2, 1.0)
+        with np.errstate(invalid="ignore"):  # inf - inf where a bound is infinite: replaced by 1 below
+            half_range = np.where(np.isfinite(spec.low) & np.isfinite(spec.high), (spec.high - spec.low) / 2, 1.0)
         noisy_action = action + scale * jnp.asarray(half_range, action.dtype) * jax.random.normal(
             key, action.shape, action.dtype)
         return jnp.clip(noisy_action, jnp.asarray(spec.low, action.dtype), jnp.asarray(spec.high, action.dtype))
@@ -84,6 +84,8 @@ def noisy(agent: Agent, *, action_noise: float = 0.0, random_fraction: float = 0
 
     def act(state, info, key, privileged=None):
         action, inner = agent.act(state.inner, info, key, privileged)
+        if not (action_noise or random_fraction):  # the bare agent: no keys to draw in the step
+            return action, state.replace(inner=inner)
         batch = info.reward.shape[0]
         keys = jax.random.split(jax.random.fold_in(key, _NOISE_STREAM), (batch, 3))
 
