@@ -23,7 +23,7 @@ start() {
 start "${TASKS[0]}"; first=$!
 first_csv="$R/transporter-${TASKS[0]}-$DEMOS/run/train.csv"
 for _ in $(seq 180); do  # at most 15 minutes
-  [ "$(wc -l < "$first_csv" 2>/dev/null || echo 0)" -ge 2 ] && break
+  [ -f "$first_csv" ] && [ "$(wc -l < "$first_csv")" -ge 2 ] && break  # its first chunk has compiled
   kill -0 "$first" 2>/dev/null || break  # it ended (or failed): nothing to wait for
   sleep 5
 done
