@@ -203,7 +203,7 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
     if log_path is not None:
         log_path.mkdir(parents=True, exist_ok=True)
         (log_path / "config.json").write_text(json.dumps(
-            _run_config(agent, arena, eval_arena, total_steps=total_steps, select=select,
+            _run_config(agent, arena, eval_arena, key=_key_words(key), total_steps=total_steps, select=select,
                         devices=int(mesh.devices.size), processes=jax.process_count()), indent=2, default=str))
 
     train_state, chunk = _compiled_training(agent, arena, key, mesh)
@@ -428,6 +428,11 @@ def _run_config(agent, arena: Arena, eval_arena: Arena, **extra) -> dict:
     return {"agent": agent.name, "arena": _label(arena),
             **({"eval_arena": _label(eval_arena)} if eval_arena is not arena else {}),
             "config": agent.config, **extra, "jax": jax.__version__, "device": str(jax.devices()[0])}
+
+
+def _key_words(key: jax.Array) -> list[int]:
+    """The run's key as its raw words (``jax.random.key(seed)``'s are ``[0, seed]``), for ``config.json``."""
+    return [int(word) for word in np.asarray(jax.random.key_data(key)).ravel()]
 
 
 def _write_evaluation(path: Path, evaluation: EvalResult) -> None:

@@ -105,7 +105,9 @@ def test_an_eval_arena_validates_and_evaluates_in_place_of_the_training_arena(ca
     assert [v["return_mean"] for v in result.validations][1:3] == [100.0, 100.0]
     assert result.selected["update"] == 6 and result.evaluation.summary()["return_mean"] == 100.0
     assert result.evaluation.summary()["episodes"] == short.num_eval_episodes
-    assert json.loads((tmp_path / "config.json").read_text())["eval_arena"] == CARTPOLE + ",time_limit:100"
+    saved = json.loads((tmp_path / "config.json").read_text())
+    assert saved["eval_arena"] == CARTPOLE + ",time_limit:100"
+    assert saved["key"] == [0, 0]  # the run's key, jax.random.key(0), as its raw words
     with pytest.raises(ValueError, match=r"another observation spec .*same domain and task"):
         train_and_evaluate(scripted_trainer(()), cartpole, jax.random.key(0), progress=False,
                            eval_arena=jarena.build_arena("classic|domain:pendulum"))
