@@ -4,6 +4,9 @@ An arena with an action repeat (``action:repeat(N)``) counts decisions in its cs
 environment steps each, as DreamerV3 counts them.
 
     python benchmarks/plot_world_model_run.py benchmarks/world_model_runs/dreamer-walker-walk-100k --task walker-walk
+
+Several run directories (seeds of one config) are drawn on the same axes, one colour each; a run cut before its
+final evaluation shows what it logged.
 """
 
 from __future__ import annotations
@@ -31,39 +34,62 @@ def rows(path: Path) -> list[dict[str, float]]:
         return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
 
 
+def load(run_dir: Path) -> dict:
+    """A run directory's curves: training episodes, validations, the final evaluation (None for a run that was cut
+    before it), the seconds at each chunk, its config and the environment steps per logged step."""
+    every = rows(run_dir / "train.csv")
+    config = json.loads((run_dir / "config.json").read_text())
+    repeat = re.search(r"repeat\((\d+)\)", config["arena"])
+    final = None
+    if (run_dir / "evaluation.json").exists():
+        evaluation = json.loads((run_dir / "evaluation.json").read_text())
+        final = evaluation["summary"]["return_mean"] if "summary" in evaluation else evaluation["return_mean"]
+    return {"train": [r for r in every if r["episode_return"] == r["episode_return"]],
+            "validation": rows(run_dir / "validation.csv") if (run_dir / "validation.csv").exists() else [],
+            "final": final, "seconds": {r["env_steps"]: r["seconds"] for r in every}, "config": config,
+            "per_decision": int(repeat.group(1)) if repeat else 1}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("run_dir", type=Path)
+    parser.add_argument("run_dirs", type=Path, nargs="+", help="one run directory, or several (seeds) to overlay")
     parser.add_argument("--task", choices=sorted(DREAMERV3), required=True)
-    parser.add_argument("--out", type=Path, default=None, help="default: RUN_DIR/curve.png")
+    parser.add_argument("--labels", default=None, help="comma-separated names of the runs (default: their folders)")
+    parser.add_argument("--out", type=Path, default=None, help="default: RUN_DIR/curve.png (the first run's)")
     args = parser.parse_args()
-    train = [r for r in rows(args.run_dir / "train.csv") if r["episode_return"] == r["episode_return"]]
-    validation = rows(args.run_dir / "validation.csv")
-    evaluation = json.loads((args.run_dir / "evaluation.json").read_text())
-    seconds = {r["env_steps"]: r["seconds"] for r in rows(args.run_dir / "train.csv")}
-    config = json.loads((args.run_dir / "config.json").read_text())
-    repeat = re.search(r"repeat\((\d+)\)", config["arena"])
-    per_decision = int(repeat.group(1)) if repeat else 1
-    final = evaluation["summary"]["return_mean"] if "summary" in evaluation else evaluation["return_mean"]
+    runs = [load(d) for d in args.run_dirs]
+    labels = args.labels.split(",") if args.labels else [d.name for d in args.run_dirs]
+    if len(labels) != len(runs):
+        parser.error(f"--labels names {len(labels)} runs; {len(runs)} run directories were given")
+    several = len(runs) > 1
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for ax, x_of in zip(axes, (lambda s: s * per_decision, lambda s: seconds[s] / 60), strict=True):
-        ax.plot([x_of(r["env_steps"]) for r in train], [r["episode_return"] for r in train], label="training episodes")
-        ax.plot([x_of(r["env_steps"]) for r in validation], [r["return_mean"] for r in validation], "o-",
-                label="validation (20 episodes)")
-        last = max(seconds)
-        ax.plot([x_of(last)], [final], "*", markersize=14, color="C3", label=f"eval, 100 episodes ({final:.0f})")
+    for i, (run, label) in enumerate(zip(runs, labels, strict=True)):
+        colour, prefix = f"C{i}", f"{label}: " if several else ""
+        seconds, per_decision = run["seconds"], run["per_decision"]
+        for ax, x_of in zip(axes, (lambda s: s * per_decision, lambda s: seconds[s] / 60), strict=True):
+            ax.plot([x_of(r["env_steps"]) for r in run["train"]], [r["episode_return"] for r in run["train"]],
+                    color=colour if several else "C0", alpha=0.45 if several else 1.0, linewidth=1,
+                    label=f"{prefix}training episodes")
+            ax.plot([x_of(r["env_steps"]) for r in run["validation"]], [r["return_mean"] for r in run["validation"]],
+                    "o-", color=colour if several else "C1", label=f"{prefix}validation (20 episodes)")
+            if run["final"] is not None:
+                ax.plot([x_of(max(seconds))], [run["final"]], "*", markersize=14, color=colour if several else "C3",
+                        label=f"{prefix}eval, 100 episodes ({run['final']:.0f})")
+    for ax in axes:
         ax.set_ylabel("episode return")
         ax.set_ylim(0, 1000)
         ax.grid(alpha=0.3)
     published = DREAMERV3[args.task]
     axes[0].plot(list(published), list(published.values()), "s--", color="k", label="DreamerV3, published")
+    longest = max(max(run["seconds"]) * run["per_decision"] for run in runs)
     axes[0].set_xlabel("environment steps")
-    axes[0].set_xlim(0, max(max(seconds) * per_decision, min(published)) * 1.05)
+    axes[0].set_xlim(0, max(longest, min(published)) * 1.05)
     axes[1].set_xlabel("minutes (compilation included, validations and checkpoints too)")
-    axes[0].legend(fontsize=8)
+    axes[0].legend(fontsize=7 if several else 8)
+    config = runs[0]["config"]
     fig.suptitle(f"{config['agent']} on {config['arena']} ({config.get('device', '')}, jax {config.get('jax', '')})")
     fig.tight_layout()
-    out = args.out or args.run_dir / "curve.png"
+    out = args.out or args.run_dirs[0] / "curve.png"
     fig.savefig(out, dpi=90)
     print(out)
 
