@@ -58,6 +58,35 @@ def test_few_blocks_skipped():
     assert len(skipped) <= MAX_SKIPPED, f"too many skipped examples: {skipped}"
 
 
+def misindented_blocks(path: Path) -> list[tuple[int, str]]:
+    """Lines that start a block (after a blank line, outside fences) indented by other than a multiple of 4 spaces.
+    The site's Markdown nests a paragraph, code block or figure in a list item only at 4 spaces (8 for code), so a
+    block at 2 or 6 spaces falls out of its item and a command meant as code shows as plain text."""
+    bad, fenced, after_blank = [], False, False
+    for number, line in enumerate(path.read_text().splitlines(), 1):
+        if line.lstrip().startswith(("```", "~~~")):
+            fenced, after_blank = not fenced, False
+            continue
+        if fenced:
+            continue
+        if not line.strip():
+            after_blank = True
+            continue
+        indent = len(line) - len(line.lstrip(" "))
+        if after_blank and indent % 4:
+            bad.append((number, line.strip()[:60]))
+        after_blank = False
+    return bad
+
+
+def test_blocks_in_list_items_are_indented_by_four_spaces(tmp_path):
+    bad = [f"{page.relative_to(ROOT)}:{number}: {text}" for page in PAGES for number, text in misindented_blocks(page)]
+    assert bad == [], "indent these blocks by 4 spaces (code in a list item by 8)"
+    broken = tmp_path / "page.md"
+    broken.write_text("- an item:\n\n      jarena train ppo ARENA\n\n  More of the item.\n\n```\n  code\n```\n")
+    assert [number for number, _ in misindented_blocks(broken)] == [3, 5]
+
+
 def test_api_reference_lists_the_public_names():
     """Every name of ``jarena.__all__`` and ``jarena_agents.__all__`` has an entry (``::: name``) in the API
     reference, or, for a module, entries of its own names."""
