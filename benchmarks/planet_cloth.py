@@ -13,7 +13,8 @@ diffusion updates).
    docs/agents/planet.md);
    ``--set-oracle KEY=VALUE`` sets the oracle's config keys (e.g. ``interior=0 outward=0.15 tips=false``, the
    lookahead of 2026-11-25 that bc's first cloth results cloned);
-2. ``train_and_evaluate``: each of ``--agents`` (default ``planet,bc``; also ``diffusion``) offline on that dataset
+2. ``train_and_evaluate``: each of ``--agents`` (default ``planet,bc``; also ``diffusion`` and ``transporter``, which
+   here sees the RGB image with a zero height channel, as the arena renders no depth) offline on that dataset
    from its committed config (``configs/<agent>/cloth-square_fabric-flattening``), each evaluated with its final
    policy on the ``--episodes`` eval episodes (no validation);
 3. the ``random`` agent on the same eval episodes.
@@ -51,7 +52,7 @@ from jarena.runners.evaluate import evaluate
 from jarena.training import train_and_evaluate
 
 #: The agents this script trains from the dataset, each from its committed cloth config.
-AGENTS = ("planet", "bc", "diffusion")
+AGENTS = ("planet", "bc", "diffusion", "transporter")
 
 
 def arena_string(particles: int, resolution: int, actions: int, episodes: int) -> str:
