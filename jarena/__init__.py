@@ -32,7 +32,8 @@ from jarena.core.task import Task
 from jarena.core.tool import ActionTool
 from jarena.core.types import ArenaParams, ArenaState, Final, Info, Outcome, Transition
 from jarena.data import TrajectoryDataset, collect, make_buffer
-from jarena.runners import EvalResult, Recording, Trajectory, evaluate, perform_parallel, record_video, run, validate
+from jarena.runners import (EvalResult, Recording, Trajectory, evaluate, evaluate_policies, perform_parallel,
+                            record_video, run, validate)
 from jarena.training import SeedsResult, TrainResult, train_and_evaluate, train_seeds
 
 __version__ = "0.1.0"
@@ -42,7 +43,8 @@ __all__ = [
     "Discrete", "Dynamics", "EvalResult", "Final", "Recording", "Info", "Outcome", "SeedsResult", "Sensor",
     "SensorMemory", "SpecError", "Task",
     "TrainResult", "Trajectory", "TrajectoryDataset", "Transition", "auto_reset", "batch_reset", "batch_step",
-    "build_arena", "chain", "collect", "data", "distributed", "evaluate", "list_arenas", "make_buffer",
+    "build_arena", "chain", "collect", "data", "distributed", "evaluate", "evaluate_policies", "list_arenas",
+    "make_buffer",
     "parse_arena_string", "perform_parallel", "record_video", "register_arena_builder", "register_task",
     "register_tool", "retrieve_config",
     "run", "sensors", "spec", "tasks", "testing", "tools", "train_and_evaluate", "train_seeds",

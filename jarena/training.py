@@ -33,7 +33,7 @@ from jarena.core.arena import Arena
 from jarena.core.types import ArenaState, Info
 from jarena.render.frames import RenderError, can_render
 from jarena.render.record import check_video, write_episodes
-from jarena.runners.evaluate import run_episodes, validate
+from jarena.runners.evaluate import evaluate_policies, run_episodes, validate
 from jarena.runners.results import EvalResult
 
 # Metrics of a chunk's updates that add up (counts) rather than average.
@@ -284,12 +284,14 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
 class SeedsResult:
     """What :func:`train_seeds` returns: ``train_state`` (leaves with a leading seed axis (S, ...)), ``histories``
     (per seed, one dict per chunk, as :attr:`TrainResult.history`), ``evaluations`` (per seed, its final policy on
-    the eval episodes) and the ``seeds``, in that order."""
+    the eval episodes), the ``seeds``, in that order, and ``validations`` (per seed, one dict per validation, as
+    :attr:`TrainResult.validations`; empty lists when the run did not validate)."""
 
     train_state: Any
     histories: list[list[dict[str, float]]]
     evaluations: list[EvalResult]
     seeds: list[int]
+    validations: list[list[dict[str, float]]] = dataclasses.field(default_factory=list)
 
     def summary(self) -> dict[str, float]:
         """Over the seeds: ``seeds``, and the mean and standard deviation (ddof 0) of each seed's evaluation
@@ -314,17 +316,18 @@ class SeedsResult:
 
 
 def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, chunk_updates: int | None = None,
-                run_dir: str | Path | None = None, progress: bool = True,
-                eval_arena: Arena | None = None) -> SeedsResult:
+                validate_every: int | None = None, validations: int = 0, run_dir: str | Path | None = None,
+                progress: bool = True, eval_arena: Arena | None = None) -> SeedsResult:
     """Trains ``agent`` once per seed, all seeds in one compiled program (the agent's training vmapped over a
-    leading seed axis), then evaluates each seed's final policy on the eval episodes.
+    leading seed axis), validating all seeds at once as it goes, then evaluates each seed's final policy on the
+    eval episodes (all seeds in one batch: :func:`jarena.runners.evaluate.evaluate_policies`).
 
     Meant for runs that leave the device idle (a world model's gradient step on a batch of 16 sequences, a
     collection step of a few arenas), where S seeds should cost little more than one. Seed ``s``'s run is the run
-    :func:`train_and_evaluate` makes with ``jax.random.key(s)`` (the same updates; batched operations may round
-    differently), without its validations, selection or checkpoints: the last policy of each seed is evaluated,
-    and a stopped call starts again from the beginning. Each seed holds its own training state (replay buffer, or
-    a dataset agent's copy of its data): memory grows with the seeds.
+    :func:`train_and_evaluate` makes with ``jax.random.key(s)`` (the same updates and validations; batched
+    operations may round differently), without its selection or checkpoints: the last policy of each seed is
+    evaluated, and a stopped call starts again from the beginning. Each seed holds its own training state
+    (replay buffer, or a dataset agent's copy of its data): memory grows with the seeds.
 
     Args:
       agent: a trainable agent.
@@ -332,10 +335,14 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
       seeds: the seeds (ints), e.g. ``range(3)``; each seed's key is ``jax.random.key(seed)``.
       total_steps: environment steps to train each seed for (default: the agent config's ``total_steps``).
       chunk_updates: updates per compiled chunk (default: about 20 chunks per run).
-      run_dir: if given, writes ``config.json``, ``seed_<s>/train.csv`` and ``seed_<s>/evaluation.json`` per seed,
-        and ``seeds.csv`` (one row per seed: its evaluation summary).
+      validate_every: validate every this many chunks and after the last (0: never); by default so that the run
+        validates ``validations`` times (default 0: it does not validate), as :func:`train_and_evaluate`.
+      validations: how many times (at most) the run validates when ``validate_every`` is not given.
+      run_dir: if given, writes ``config.json``, ``seed_<s>/train.csv``, ``seed_<s>/validation.csv``,
+        ``seed_<s>/evaluation.json`` and ``seed_<s>/learning_curve.png`` per seed, and ``seeds.csv`` (one row per
+        seed: its evaluation summary).
       progress: a progress bar over the environment steps of one seed.
-      eval_arena: evaluate on this arena instead (the same specs), as :func:`train_and_evaluate`'s.
+      eval_arena: validate and evaluate on this arena instead (the same specs), as :func:`train_and_evaluate`'s.
     """
     _check_trainable(agent)
     seeds = [int(s) for s in seeds]
@@ -343,11 +350,19 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
         raise ValueError(f"train_seeds needs one or more distinct seeds, got {seeds}")
     for name, value in (("total_steps", total_steps), ("chunk_updates", chunk_updates)):
         _positive_or_none(name, value)
+    if validate_every is not None and (isinstance(validate_every, bool) or not isinstance(validate_every, int)
+                                       or validate_every < 0):
+        raise ValueError(f"validate_every must be a whole number of chunks >= 0 (0: never), got {validate_every!r}")
+    if isinstance(validations, bool) or not isinstance(validations, int) or validations < 0:
+        raise ValueError(f"validations must be a whole number >= 0 (0: never), got {validations!r}")
     eval_arena = arena if eval_arena is None else eval_arena
     _check_same_specs(arena, eval_arena)
     steps_per_update = agent.settings.steps_per_update
     total_steps = total_steps or agent.settings.total_steps
-    num_chunks, chunk_updates, _ = training_schedule(agent.settings, total_steps, chunk_updates, 0, 1)
+    if validate_every is None and validations == 0:
+        validate_every = 0
+    num_chunks, chunk_updates, validate_every = training_schedule(agent.settings, total_steps, chunk_updates,
+                                                                  validate_every, validations)
     num_updates = num_chunks * chunk_updates
     run_path = Path(run_dir) if run_dir is not None else None
     if run_path is not None:
@@ -360,11 +375,14 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
     train_state = jax.jit(jax.vmap(lambda key: agent.init_training(key, arena)))(keys)
     chunk = jax.jit(lambda ts, n: jax.vmap(lambda one: agent.train(one, arena, n))(ts), static_argnums=1,
                     donate_argnums=0)
+    # every seed's acting policy, stacked: only what the policies read is computed (no copy of a replay buffer)
+    policies = jax.jit(jax.vmap(lambda one: agent.policy(one, eval_arena.spec, True)))
     histories: list[list[dict[str, float]]] = [[] for _ in seeds]
+    validated: list[list[dict[str, float]]] = [[] for _ in seeds]
     bar = _progress(num_updates * steps_per_update, progress)
     start, done = time.perf_counter(), 0
     try:
-        for _ in range(num_chunks):
+        for index in range(num_chunks):
             n = min(chunk_updates, num_updates - done)
             train_state, metrics = chunk(train_state, n)
             metrics = jax.device_get(metrics)
@@ -373,22 +391,30 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
             for i, history in enumerate(histories):
                 history.append(_history_row({k: v[i] for k, v in metrics.items()}, done, steps_per_update, seconds))
             bar.update(n * steps_per_update, _mean_row([h[-1] for h in histories]))
-            if run_path is not None:
-                for seed, history in zip(seeds, histories, strict=True):
+            if validate_every and ((index + 1) % validate_every == 0 or index + 1 == num_chunks):
+                results = evaluate_policies(agent, eval_arena, policies(train_state), jax.random.key(index),
+                                            split="val")
+                for rows, result in zip(validated, results, strict=True):
+                    rows.append({"update": done, "env_steps": done * steps_per_update, **result.summary()})
+                mean = float(np.mean([rows[-1]["return_mean"] for rows in validated]))
+                bar.note(f"validation return {mean:.1f} at step {done * steps_per_update} (mean over the seeds)")
+            if run_path is not None:  # the curves so far survive a run that is stopped or killed
+                for seed, history, rows in zip(seeds, histories, validated, strict=True):
                     _write_csv(run_path / f"seed_{seed}" / "train.csv", history)
+                    _write_csv(run_path / f"seed_{seed}" / "validation.csv", rows)
     finally:
         bar.close()
-    evaluations = []
-    for i, seed in enumerate(seeds):
-        one = jax.tree_util.tree_map(lambda x: x[i], train_state)
-        evaluation, _ = run_episodes(agent, eval_arena, jax.random.key(0),
-                                     agent_state=agent.policy(one, eval_arena.spec, True))
-        evaluation = dataclasses.replace(evaluation, selected={"select": "last", "update": done,
-                                                               "env_steps": done * steps_per_update})
-        evaluations.append(evaluation)
-        if run_path is not None:
+    selected = {"select": "last", "update": done, "env_steps": done * steps_per_update}
+    evaluations = [dataclasses.replace(e, selected=selected)
+                   for e in evaluate_policies(agent, eval_arena, policies(train_state), jax.random.key(0))]
+    if run_path is not None:
+        substeps = int(getattr(eval_arena.tool, "substeps", 1) or 1)
+        for seed, history, rows, evaluation in zip(seeds, histories, validated, evaluations, strict=True):
             _write_evaluation(run_path / f"seed_{seed}" / "evaluation.json", evaluation)
-    result = SeedsResult(train_state=train_state, histories=histories, evaluations=evaluations, seeds=seeds)
+            _plot(run_path / f"seed_{seed}" / "learning_curve.png", history, rows, evaluation, agent.name,
+                  f"{_label(arena)}, seed {seed}", substeps)
+    result = SeedsResult(train_state=train_state, histories=histories, evaluations=evaluations, seeds=seeds,
+                         validations=validated)
     if run_path is not None:
         rows = [{"seed": float(seed), **e.summary()} for seed, e in zip(seeds, evaluations, strict=True)]
         _write_csv(run_path / "seeds.csv", rows)
@@ -645,7 +671,8 @@ def _plot(path: Path, history, validations, evaluation, agent: str, arena: str, 
         ax.set_xlabel("environment steps" if substeps == 1 else
                       f"decisions (the arena's tool holds each for {substeps} control steps)")
     ax.set_ylabel("episode return")
-    ax.set_title(f"{agent} on {arena}")
+    title = f"{agent} on {arena}"
+    ax.set_title(title, fontsize=12 if len(title) <= 48 else max(7, int(12 * 48 / len(title))))
     ax.legend(handles, labels, fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

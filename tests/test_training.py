@@ -216,18 +216,23 @@ def test_progress_bar_shows_running_return_until_an_episode_ends():
 
 
 def test_seeds_train_at_once_each_as_its_own_run(cartpole, tmp_path):
-    """train_seeds vmaps the training over seeds: seed s's curve and final evaluation are the run of
-    train_and_evaluate with key s (final policy, no validation); the seeds differ; the run directory holds each."""
+    """train_seeds vmaps the training over seeds: seed s's curve, validations and final evaluation are the run of
+    train_and_evaluate with key s (its final policy evaluated); the seeds differ; the run directory holds each."""
     agent = jarena_agents.build_agent("ppo", dict(jarena.retrieve_config("ppo", cartpole), num_arenas=8,
                                                   rollout_length=64))
-    result = jarena.training.train_seeds(agent, cartpole, [0, 3], total_steps=4096, progress=False, run_dir=tmp_path)
+    result = jarena.training.train_seeds(agent, cartpole, [0, 3], total_steps=4096, validations=2, progress=False,
+                                         run_dir=tmp_path)
     assert len(result.histories) == 2 and len(result.histories[0]) == len(result.histories[1]) >= 2
     for index, seed in enumerate((0, 3)):
         alone = train_and_evaluate(agent, cartpole, jax.random.key(seed), total_steps=4096, progress=False,
-                                   validate_every=0, eval_videos=0)
+                                   validations=2, select="last", eval_videos=0)
         for key in ("episode_return", "value", "entropy"):
             np.testing.assert_allclose([r[key] for r in result.histories[index]], [r[key] for r in alone.history],
                                        rtol=1e-4)
+        assert [v["update"] for v in result.validations[index]] == [v["update"] for v in alone.validations]
+        assert len(alone.validations) == 2
+        np.testing.assert_allclose([v["return_mean"] for v in result.validations[index]],
+                                   [v["return_mean"] for v in alone.validations], rtol=1e-3)
         assert result.evaluations[index].summary()["return_mean"] == pytest.approx(
             alone.evaluation.summary()["return_mean"], rel=1e-3)
     assert result.histories[0][0]["episode_return"] != result.histories[1][0]["episode_return"]
@@ -237,12 +242,15 @@ def test_seeds_train_at_once_each_as_its_own_run(cartpole, tmp_path):
     with open(tmp_path / "seeds.csv") as f:
         assert [float(row["seed"]) for row in csv.DictReader(f)] == [0.0, 3.0]
     for seed in (0, 3):
-        assert (tmp_path / f"seed_{seed}" / "train.csv").is_file()
+        for name in ("train.csv", "validation.csv", "learning_curve.png"):
+            assert (tmp_path / f"seed_{seed}" / name).is_file()
         saved = json.loads((tmp_path / f"seed_{seed}" / "evaluation.json").read_text())
         assert saved["selected"]["select"] == "last" and len(saved["episodes"]) == cartpole.num_eval_episodes
     assert json.loads((tmp_path / "config.json").read_text())["seeds"] == [0, 3]
     with pytest.raises(ValueError, match="distinct seeds"):
         jarena.training.train_seeds(agent, cartpole, [1, 1], progress=False)
+    with pytest.raises(ValueError, match="validations must be a whole number >= 0"):
+        jarena.training.train_seeds(agent, cartpole, [1, 2], validations=-1, progress=False)
 
 
 def test_the_command_line_trains_several_seeds_at_once(tmp_path, capsys):
@@ -252,6 +260,9 @@ def test_the_command_line_trains_several_seeds_at_once(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "seeds 5 to 6, at once" in out and "all 2 |" in out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["config.json", "seed_5", "seed_6", "seeds.csv"]
+    for seed in (5, 6):  # validated 10 times, as a single run by default
+        with open(tmp_path / f"seed_{seed}" / "validation.csv") as f:
+            assert len(list(csv.DictReader(f))) >= 2
 
 
 def test_a_final_evaluation_line_outside_the_plotted_returns_widens_the_range_to_show_it():

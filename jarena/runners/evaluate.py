@@ -26,12 +26,14 @@ PyTree = Any
 
 @functools.lru_cache(maxsize=64)
 def _compiled_episodes(agent: Agent, arena: Arena, num: int, max_steps: int, params_axis: int | None,
-                       filmed: int = 0, mesh=None, key_impl=None):
+                       filmed: int = 0, mesh=None, key_impl=None, stacked: bool = False):
     """A jitted ``(key_data, agent_state, params, ids) -> per-episode arrays`` for ``num`` episodes.
 
     With ``filmed > 0`` it also keeps the physics states of the first ``filmed`` arenas at every step,
     ``physics``: (max_steps + 1, filmed, ...), the reset state first (frozen after an episode ends). With a
-    ``mesh`` of several devices the episodes are split over them (``num`` divides evenly).
+    ``mesh`` of several devices the episodes are split over them (``num`` divides evenly). With ``stacked``, the
+    agent state's leaves have a leading policy axis (P, ...) and every output gains one: each policy runs the same
+    episodes with the same key, all in one program.
     """
     split = None if mesh is None else distributed.batch_shardings
     constrain = ((lambda tree: jax.lax.with_sharding_constraint(tree, split(tree, mesh, num))) if split
@@ -82,7 +84,7 @@ def _compiled_episodes(agent: Agent, arena: Arena, num: int, max_steps: int, par
             out["physics"] = distributed.replicate(film)
         return out
 
-    return jax.jit(episodes)
+    return jax.jit(jax.vmap(episodes, in_axes=(None, 0, None, None)) if stacked else episodes)
 
 
 def steps_per_check(max_steps: int, devices: int, most: int = 8) -> int:
@@ -105,12 +107,9 @@ def _pad(tree: PyTree, size: int) -> PyTree:
         lambda x: np.concatenate([np.asarray(x), np.repeat(np.asarray(x)[-1:], size - len(x), axis=0)]), tree)
 
 
-def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_state: PyTree = None,
-                 params: ArenaParams | None = None, params_axis: int | None = None, split: str = "eval",
-                 episodes: Any = None, max_steps: int | None = None, filmed: int = 0,
-                 devices: int | str | None = None) -> tuple[EvalResult, PyTree]:
-    """:func:`evaluate`, also returning the physics states of the first ``filmed`` episodes on device,
-    (max_steps + 1, filmed, ...) with the reset state first, or ``None`` when ``filmed == 0``."""
+def _checked_episodes(agent: Agent, arena: Arena, split: str, episodes: Any, max_steps: int | None,
+                      filmed: int = 0) -> tuple[np.ndarray, int]:
+    """``(episode ids as int32, max_steps)`` of an evaluation, every argument checked before anything compiles."""
     agent.check_fits(arena)  # an AgentArenaMismatch before compiling (cached per agent and arena)
     if split not in ("eval", "val"):
         raise ValueError(f"evaluate runs the fixed 'eval' or 'val' splits, got split={split!r}")
@@ -123,12 +122,57 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
     if not 0 <= int(filmed) <= ids.size:
         raise ValueError(f"cannot film {filmed} of {ids.size} episodes; choose 0 .. {ids.size}")
     check_episode_ids(ids, f"{arena.name}: evaluate")  # before the cast to int32, which would wrap 2^32 + 5 to 5
-    ids = ids.astype(np.int32, copy=False)
     if max_steps is not None:
         check_count(max_steps, "max_steps", "evaluate")
     max_steps = max_steps or arena.max_episode_steps
     if max_steps is None:
         raise ValueError(f"arena {arena.name!r} has no time limit; pass max_steps to evaluate")
+    return ids.astype(np.int32, copy=False), int(max_steps)
+
+
+def _result(agent: Agent, arena: Arena, split: str, ids: np.ndarray, out: dict) -> EvalResult:
+    """The :class:`EvalResult` of one policy's per-episode host arrays ``out``."""
+    return EvalResult(arena=arena.build_string or arena.name, agent=agent.name, split=split, episodes=ids,
+                      returns=np.asarray(out["returns"]), lengths=np.asarray(out["lengths"]),
+                      successes=np.asarray(out["successes"]),
+                      metrics={k: np.asarray(v) for k, v in out["metrics"].items()},
+                      faults=np.asarray(out["faults"], np.int32), has_success=arena.task.has_success)
+
+
+def evaluate_policies(agent: Agent, arena: Arena, agent_states: PyTree, key: jax.Array | None = None, *,
+                      split: str = "eval", episodes: Any = None, max_steps: int | None = None) -> list[EvalResult]:
+    """Evaluates P policies of one agent on the same episodes in one compiled program, on one device.
+
+    ``agent_states``: the P policies' states stacked on a leading axis (leaves (P, ...)), e.g. the trained
+    policies of several seeds (:func:`jarena.train_seeds`). Policy ``p``'s result is what :func:`evaluate` gives
+    with ``agent_state`` its slice and the same key (batched operations may round differently); the P
+    evaluations run as one batch of P x N arenas, so where N arenas leave the device idle, P policies cost little
+    more than one. Returns one :class:`EvalResult` per policy, in order.
+    """
+    ids, max_steps = _checked_episodes(agent, arena, split, episodes, max_steps)
+    leaves = jax.tree_util.tree_leaves(agent_states)
+    sizes = {np.shape(leaf)[0] if np.ndim(leaf) else None for leaf in leaves}
+    if not leaves or len(sizes) != 1 or None in sizes:
+        raise ValueError(f"evaluate_policies needs agent states stacked on a leading policy axis (every leaf "
+                         f"(P, ...)); got leading sizes {sorted(map(str, sizes))}")
+    count = sizes.pop()
+    key = jax.random.key(0) if key is None else key
+    num = ids.size
+    states = [agent.batch_state(jax.tree_util.tree_map(lambda x: x[p], agent_states), num) for p in range(count)]
+    stacked = jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *states)
+    episodes_fn = _compiled_episodes(agent, arena, num, max_steps, None, 0, None, jax.random.key_impl(key),
+                                     stacked=True)
+    out = jax.device_get(episodes_fn(np.asarray(jax.random.key_data(key)), stacked, arena.default_params(), ids))
+    return [_result(agent, arena, split, ids, jax.tree_util.tree_map(lambda x: x[p], out)) for p in range(count)]
+
+
+def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_state: PyTree = None,
+                 params: ArenaParams | None = None, params_axis: int | None = None, split: str = "eval",
+                 episodes: Any = None, max_steps: int | None = None, filmed: int = 0,
+                 devices: int | str | None = None) -> tuple[EvalResult, PyTree]:
+    """:func:`evaluate`, also returning the physics states of the first ``filmed`` episodes on device,
+    (max_steps + 1, filmed, ...) with the reset state first, or ``None`` when ``filmed == 0``."""
+    ids, max_steps = _checked_episodes(agent, arena, split, episodes, max_steps, filmed)
     key = jax.random.key(0) if key is None else key
     params = arena.default_params() if params is None else params
     mesh = distributed.mesh(devices)
@@ -158,12 +202,7 @@ def run_episodes(agent: Agent, arena: Arena, key: jax.Array | None = None, *, ag
         # data moves between processes), so that process 0 renders them alone without entering a computation
         # over arrays that span the processes, which the others would never enter.
         physics = distributed.fetch(physics, f"{split} filmed states")
-    result = EvalResult(arena=arena.build_string or arena.name, agent=agent.name, split=split, episodes=ids,
-                        returns=np.asarray(out["returns"]), lengths=np.asarray(out["lengths"]),
-                        successes=np.asarray(out["successes"]),
-                        metrics={k: np.asarray(v) for k, v in out["metrics"].items()},
-                        faults=np.asarray(out["faults"], np.int32), has_success=arena.task.has_success)
-    return result, physics
+    return _result(agent, arena, split, ids, out), physics
 
 
 def evaluate(agent: Agent, arena: Arena, key: jax.Array | None = None, *, agent_state: PyTree = None,

@@ -67,6 +67,26 @@ def test_evaluate_checks_for_the_end_every_few_steps_without_changing_results(ar
             np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
+def test_evaluate_policies_equals_evaluating_each_policy_alone(arena):
+    """Three policies (PPO's initial networks from three keys, acting greedily) stacked on a leading axis: one
+    compiled batch gives each the results evaluate gives it alone with the same key; bad stacks are refused."""
+    agent = jarena_agents.build_agent("ppo", {"num_arenas": 4, "total_steps": 4096})
+    policies = [agent.policy(agent.init_training(jax.random.key(s), arena), arena.spec, True) for s in range(3)]
+    stacked = jax.tree_util.tree_map(lambda *xs: np.stack(xs), *policies)
+    together = jarena.evaluate_policies(agent, arena, stacked, jax.random.key(7), split="val")
+    assert len(together) == 3
+    for policy, result in zip(policies, together, strict=True):
+        alone = jarena.validate(agent, arena, jax.random.key(7), agent_state=policy)
+        np.testing.assert_array_equal(result.returns, alone.returns)
+        np.testing.assert_array_equal(result.episodes, alone.episodes)
+        assert result.split == "val" and result.summary()["episodes"] == arena.num_val_episodes
+    assert len({tuple(r.returns) for r in together}) == 3  # three different policies
+    leaves, tree = jax.tree_util.tree_flatten(stacked)
+    ragged = jax.tree_util.tree_unflatten(tree, [leaves[0][:2], *leaves[1:]])
+    with pytest.raises(ValueError, match="stacked on a leading policy axis"):
+        jarena.evaluate_policies(agent, arena, ragged, jax.random.key(7))
+
+
 def test_validate_uses_the_val_split(arena):
     result = jarena.validate(jarena_agents.build_agent("no_op"), arena)
     assert result.split == "val" and list(result.episodes) == list(arena.episodes("val"))
