@@ -152,9 +152,9 @@ def evaluate_policies(agent: Agent, arena: Arena, agent_states: PyTree, key: jax
     ids, max_steps = _checked_episodes(agent, arena, split, episodes, max_steps)
     leaves = jax.tree_util.tree_leaves(agent_states)
     sizes = {np.shape(leaf)[0] if np.ndim(leaf) else None for leaf in leaves}
-    if not leaves or len(sizes) != 1 or None in sizes:
+    if not leaves or len(sizes) != 1 or None in sizes or 0 in sizes:
         raise ValueError(f"evaluate_policies needs agent states stacked on a leading policy axis (every leaf "
-                         f"(P, ...)); got leading sizes {sorted(map(str, sizes))}")
+                         f"(P, ...), P >= 1); got leading sizes {sorted(map(str, sizes))}")
     count = sizes.pop()
     key = jax.random.key(0) if key is None else key
     num = ids.size
