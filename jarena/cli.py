@@ -372,6 +372,18 @@ def _cmd_render(args) -> int:
     return 0
 
 
+class _DefaultsHelp(argparse.ArgumentDefaultsHelpFormatter):
+    """Adds ``(default: X)`` to an option's help unless X is None or False (an unset option, an off switch) or the
+    help already says its default."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        unset = action.default is None or action.default is False or action.default == argparse.SUPPRESS
+        if unset or "default:" in text or "%(default)" in text:
+            return text
+        return super()._get_help_string(action)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="jarena", description="JAX-native arenas and agents.",
@@ -386,7 +398,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(fn=_cmd_list)
 
     p = sub.add_parser("train", help="train an agent, validating periodically, then evaluate it and print a table",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                       formatter_class=_DefaultsHelp)
     p.add_argument("agent", help="trainable agent name (e.g. ppo)")
     p.add_argument("arena", help='arena string, e.g. "classic|domain:cartpole"')
     p.add_argument("--steps", type=int, default=None,
@@ -420,7 +432,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(fn=_cmd_train)
 
     p = sub.add_parser("evaluate", help="evaluate an agent on an arena's fixed episodes and print a results table",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                       formatter_class=_DefaultsHelp)
     p.add_argument("agent", help="agent name, see `jarena list`")
     p.add_argument("arena", help='arena string, e.g. "classic|domain:cartpole,task:balance"')
     p.add_argument("--split", default="eval", choices=["eval", "val"], help="which fixed episodes")
@@ -477,7 +489,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "else 1); the trajectories are the same")
     p.set_defaults(fn=_cmd_collect)
     p = sub.add_parser("render", help="film an agent's episodes in an arena and write an MP4 or GIF video",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                       formatter_class=_DefaultsHelp)
     p.add_argument("agent", help="agent name, see `jarena list`")
     p.add_argument("arena", help='arena string, e.g. "classic|domain:pendulum" (its dynamics must render)')
     p.add_argument("--out", required=True, help="video file, .mp4 or .gif (no suffix: --format's)")

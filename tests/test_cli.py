@@ -73,6 +73,21 @@ def test_train_help_explains_devices_and_processes(capsys):
         assert flag in out
 
 
+def test_help_shows_defaults_that_say_something(capsys):
+    """Every command's --help gives an option's default where it has one (0, 10, best) and never "(default:
+    None)" or "(default: False)" (an unset option, an off switch), nor a default its own text already states."""
+    for command in ("train", "evaluate", "collect", "render"):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        out = " ".join(capsys.readouterr().out.split())
+        assert "(default: None)" not in out and "(default: False)" not in out, command
+        assert "default: real time) (default:" not in out and "total_steps) (default:" not in out  # stated twice
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "seed of the whole run (default: 0)" in out and "(default: 10)" in out
+
+
 PENDULUM = "classic|domain:pendulum,task:swingup"
 
 
