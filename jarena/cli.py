@@ -262,10 +262,10 @@ def _train_seeds(args, agent, arena, eval_arena, say) -> int:
 
     seeds = range(args.seed, args.seed + args.seeds)
     result = train_seeds(agent, arena, seeds, run_dir=args.run_dir, progress=not args.no_progress,
-                         eval_arena=eval_arena, **_validation_schedule(args.validations))
+                         eval_arena=eval_arena, select=args.select, **_validation_schedule(args.validations))
     last = result.histories[0][-1]
     say(f"trained {len(seeds)} seeds x {last['env_steps']} steps in {last['seconds']:.1f} s, compile included; "
-        f"each seed's final policy on the eval episodes:")
+        f"each seed's {args.select} policy on the eval episodes:")
     say(result.table())
     if args.run_dir:
         say(f"run directory: {args.run_dir} (config.json, seeds.csv, seed_<s>/ with train.csv, validation.csv, "
@@ -421,8 +421,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "(0: never; each validation runs the arena's validation episodes to their end)")
     p.add_argument("--seeds", type=int, default=1, metavar="N",
                    help="train N seeds (--seed .. --seed + N - 1) at once in one compiled program (for runs that leave "
-                        "the device idle), validating them together, and evaluate each seed's final policy (no "
-                        "selection or checkpoints)")
+                        "the device idle), validating them together, and evaluate each seed's policy chosen by "
+                        "--select (no checkpoints)")
     p.add_argument("--eval-arena", default=None, metavar="ARENA",
                    help="validate and evaluate on this arena's episodes instead (the same observation and action "
                         "specs): train on cheaper physics, e.g. \"dmc|domain:walker,task:walk,iterations:2\", and "

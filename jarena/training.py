@@ -305,10 +305,11 @@ class SeedsResult:
 
     def table(self) -> str:
         """One line per seed (eval return mean +- std over its episodes, success) and the mean over seeds."""
-        lines = ["seed | eval return (mean +- std over episodes) | success"]
+        lines = ["seed | eval return (mean +- std over episodes) | success | evaluated policy"]
         for seed, evaluation in zip(self.seeds, self.evaluations, strict=True):
-            s = evaluation.summary()
-            lines.append(f"{seed} | {s['return_mean']:.1f} +- {s['return_std']:.1f} | {s.get('success_rate', 0):.0%}")
+            s, chosen = evaluation.summary(), evaluation.selected or {}
+            lines.append(f"{seed} | {s['return_mean']:.1f} +- {s['return_std']:.1f} | {s.get('success_rate', 0):.0%} | "
+                         f"{chosen.get('select', 'last')}, step {chosen.get('env_steps', '?')}")
         total = self.summary()
         lines.append(f"all {len(self.seeds)} | {total['return_mean_mean']:.1f} +- {total['return_mean_std']:.1f} "
                      f"(over seeds) | {total.get('success_rate_mean', 0):.0%}")
@@ -316,17 +317,19 @@ class SeedsResult:
 
 
 def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, chunk_updates: int | None = None,
-                validate_every: int | None = None, validations: int = 0, run_dir: str | Path | None = None,
-                progress: bool = True, eval_arena: Arena | None = None) -> SeedsResult:
+                validate_every: int | None = None, validations: int = 0, select: str = "best",
+                run_dir: str | Path | None = None, progress: bool = True,
+                eval_arena: Arena | None = None) -> SeedsResult:
     """Trains ``agent`` once per seed, all seeds in one compiled program (the agent's training vmapped over a
     leading seed axis), validating all seeds at once as it goes, then evaluates each seed's final policy on the
-    eval episodes (all seeds in one batch: :func:`jarena.runners.evaluate.evaluate_policies`).
+    eval episodes (all seeds in one batch: :func:`jarena.runners.evaluate.evaluate_policies`), each seed's policy
+    chosen by ``select`` as :func:`train_and_evaluate` chooses.
 
     Meant for runs that leave the device idle (a world model's gradient step on a batch of 16 sequences, a
     collection step of a few arenas), where S seeds should cost little more than one. Seed ``s``'s run is the run
-    :func:`train_and_evaluate` makes with ``jax.random.key(s)`` (the same updates and validations; batched
-    operations may round differently), without its selection or checkpoints: the last policy of each seed is
-    evaluated, and a stopped call starts again from the beginning. Each seed holds its own training state
+    :func:`train_and_evaluate` makes with ``jax.random.key(s)`` (the same updates, validations and selection;
+    batched operations may round differently), without its checkpoints: a stopped call starts again from the
+    beginning, and the kept policies are host copies. Each seed holds its own training state
     (replay buffer, or a dataset agent's copy of its data): memory grows with the seeds.
 
     Args:
@@ -338,6 +341,8 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
       validate_every: validate every this many chunks and after the last (0: never); by default so that the run
         validates ``validations`` times (default 0: it does not validate), as :func:`train_and_evaluate`.
       validations: how many times (at most) the run validates when ``validate_every`` is not given.
+      select: which policy of each seed the final evaluation runs (:func:`train_and_evaluate`'s ``select``);
+        without validations, the last.
       run_dir: if given, writes ``config.json``, ``seed_<s>/train.csv``, ``seed_<s>/validation.csv``,
         ``seed_<s>/evaluation.json`` and ``seed_<s>/learning_curve.png`` per seed, and ``seeds.csv`` (one row per
         seed: its evaluation summary).
@@ -355,6 +360,7 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
         raise ValueError(f"validate_every must be a whole number of chunks >= 0 (0: never), got {validate_every!r}")
     if isinstance(validations, bool) or not isinstance(validations, int) or validations < 0:
         raise ValueError(f"validations must be a whole number >= 0 (0: never), got {validations!r}")
+    rule = selection(select)
     eval_arena = arena if eval_arena is None else eval_arena
     _check_same_specs(arena, eval_arena)
     steps_per_update = agent.settings.steps_per_update
@@ -370,7 +376,8 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
         for seed in seeds:
             (run_path / f"seed_{seed}").mkdir(exist_ok=True)
         (run_path / "config.json").write_text(json.dumps(
-            _run_config(agent, arena, eval_arena, total_steps=total_steps, seeds=seeds), indent=2, default=str))
+            _run_config(agent, arena, eval_arena, total_steps=total_steps, seeds=seeds, select=select), indent=2,
+            default=str))
     keys = jax.random.wrap_key_data(np.stack([np.asarray(jax.random.key_data(jax.random.key(s))) for s in seeds]))
     train_state = jax.jit(jax.vmap(lambda key: agent.init_training(key, arena)))(keys)
     chunk = jax.jit(lambda ts, n: jax.vmap(lambda one: agent.train(one, arena, n))(ts), static_argnums=1,
@@ -379,6 +386,7 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
     policies = jax.jit(jax.vmap(lambda one: agent.policy(one, eval_arena.spec, True)))
     histories: list[list[dict[str, float]]] = [[] for _ in seeds]
     validated: list[list[dict[str, float]]] = [[] for _ in seeds]
+    kept: list[tuple[Any, dict] | None] = [None for _ in seeds]  # per seed: (host copy of its policy, its row)
     bar = _progress(num_updates * steps_per_update, progress)
     start, done = time.perf_counter(), 0
     try:
@@ -392,10 +400,12 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
                 history.append(_history_row({k: v[i] for k, v in metrics.items()}, done, steps_per_update, seconds))
             bar.update(n * steps_per_update, _mean_row([h[-1] for h in histories]))
             if validate_every and ((index + 1) % validate_every == 0 or index + 1 == num_chunks):
-                results = evaluate_policies(agent, eval_arena, policies(train_state), jax.random.key(index),
-                                            split="val")
-                for rows, result in zip(validated, results, strict=True):
+                stacked = policies(train_state)
+                results = evaluate_policies(agent, eval_arena, stacked, jax.random.key(index), split="val")
+                for i, (rows, result) in enumerate(zip(validated, results, strict=True)):
                     rows.append({"update": done, "env_steps": done * steps_per_update, **result.summary()})
+                    if _prefers(rule, rows[-1], None if kept[i] is None else kept[i][1]):
+                        kept[i] = (jax.device_get(jax.tree_util.tree_map(lambda x, i=i: x[i], stacked)), rows[-1])
                 mean = float(np.mean([rows[-1]["return_mean"] for rows in validated]))
                 bar.note(f"validation return {mean:.1f} at step {done * steps_per_update} (mean over the seeds)")
             if run_path is not None:  # the curves so far survive a run that is stopped or killed
@@ -404,9 +414,14 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
                     _write_csv(run_path / f"seed_{seed}" / "validation.csv", rows)
     finally:
         bar.close()
-    selected = {"select": "last", "update": done, "env_steps": done * steps_per_update}
-    evaluations = [dataclasses.replace(e, selected=selected)
-                   for e in evaluate_policies(agent, eval_arena, policies(train_state), jax.random.key(0))]
+    final = jax.device_get(policies(train_state)) if not all(kept) else None
+    chosen = [k[0] if k is not None else jax.tree_util.tree_map(lambda x, i=i: x[i], final)
+              for i, k in enumerate(kept)]
+    selected = [_kept_row(rule, k[1]) if k is not None else _last_row(rule, h[-1] if h else None, v[-1] if v else None)
+                for k, h, v in zip(kept, histories, validated, strict=True)]
+    stacked = jax.tree_util.tree_map(lambda *xs: np.stack(xs), *chosen)
+    evaluations = [dataclasses.replace(e, selected=chosen_row) for e, chosen_row in
+                   zip(evaluate_policies(agent, eval_arena, stacked, jax.random.key(0)), selected, strict=True)]
     if run_path is not None:
         substeps = int(getattr(eval_arena.tool, "substeps", 1) or 1)
         for seed, history, rows, evaluation in zip(seeds, histories, validated, evaluations, strict=True):
@@ -523,6 +538,36 @@ def _history_row(metrics: dict, updates: int, steps_per_update: int, seconds: fl
     return row
 
 
+def _kept_row(rule: Selection, row: dict) -> dict:
+    """``selected`` for a policy the rule kept at the validation ``row``."""
+    selected = {"select": rule.name, "update": int(row["update"]), "env_steps": int(row["env_steps"]),
+                "validation_return": float(row["return_mean"])}
+    if rule.metric != "return_mean":
+        selected[f"validation_{rule.metric}"] = float(row[rule.metric])
+    return selected
+
+
+def _last_row(rule: Selection, last_row: dict | None, last_validation: dict | None) -> dict:
+    """``selected`` for the final policy (the rule is ``last``, or it kept nothing)."""
+    final_validated = (last_validation is not None and last_row is not None
+                       and last_validation["update"] == last_row["update"])
+    return {"select": "last" if rule.replaces is None else "last (nothing validated)",
+            "update": int(last_row["update"]) if last_row else 0,
+            "env_steps": int(last_row["env_steps"]) if last_row else 0,
+            "validation_return": float(last_validation["return_mean"]) if final_validated else None}
+
+
+def _prefers(rule: Selection, row: dict, kept: dict | None) -> bool:
+    """Whether ``rule`` keeps the policy validated at ``row`` over the one kept at ``kept`` (None: nothing yet); a
+    metric the validation lacks is an error naming its columns."""
+    if rule.replaces is None:
+        return False
+    if rule.metric not in row:
+        raise ValueError(f"select {rule.name!r}: the validation has no column {rule.metric!r}; its columns: "
+                         f"{', '.join(sorted(row))}")
+    return rule.replaces(float(row[rule.metric]), None if kept is None else float(kept[rule.metric]))
+
+
 class _BestPolicy:
     """Keeps the selected policy as training goes: a host copy (the train state's buffers are donated to
     the next chunk) and, with a run directory, a checkpoint in ``directory`` so a resumed run keeps it."""
@@ -534,13 +579,7 @@ class _BestPolicy:
 
     def offer(self, train_state, chunk: int, row: dict) -> bool:
         """Keeps the validated policy of ``train_state`` (after ``chunk`` chunks) if the rule prefers it."""
-        if self.rule.replaces is None:
-            return False
-        metric = self.rule.metric
-        if metric not in row:
-            raise ValueError(f"select {self.rule.name!r}: the validation has no column {metric!r}; its columns: "
-                             f"{', '.join(sorted(row))}")
-        if not self.rule.replaces(float(row[metric]), None if self.row is None else float(self.row[metric])):
+        if not _prefers(self.rule, row, self.row):
             return False
         self.policy = distributed.fetch(self.agent.policy(train_state, self.arena.spec, True), "best policy")
         self.row, self.chunk = row, chunk
@@ -560,18 +599,8 @@ class _BestPolicy:
     def choice(self, train_state, last_row: dict | None, last_validation: dict | None):
         """``(policy, selected)``: the kept policy, or the final one when none was kept."""
         if self.policy is not None:
-            selected = {"select": self.rule.name, "update": int(self.row["update"]),
-                        "env_steps": int(self.row["env_steps"]), "validation_return": float(self.row["return_mean"])}
-            if self.rule.metric != "return_mean":
-                selected[f"validation_{self.rule.metric}"] = float(self.row[self.rule.metric])
-            return self.policy, selected
-        final_validated = (last_validation is not None and last_row is not None
-                           and last_validation["update"] == last_row["update"])
-        reason = "last" if self.rule.replaces is None else "last (nothing validated)"
-        return self.agent.policy(train_state, self.arena.spec, True), {
-            "select": reason, "update": int(last_row["update"]) if last_row else 0,
-            "env_steps": int(last_row["env_steps"]) if last_row else 0,
-            "validation_return": float(last_validation["return_mean"]) if final_validated else None}
+            return self.policy, _kept_row(self.rule, self.row)
+        return self.agent.policy(train_state, self.arena.spec, True), _last_row(self.rule, last_row, last_validation)
 
     def close(self) -> None:
         if self.saver is not None:

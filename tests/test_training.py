@@ -220,8 +220,8 @@ def test_seeds_train_at_once_each_as_its_own_run(cartpole, tmp_path):
     train_and_evaluate with key s (its final policy evaluated); the seeds differ; the run directory holds each."""
     agent = jarena_agents.build_agent("ppo", dict(jarena.retrieve_config("ppo", cartpole), num_arenas=8,
                                                   rollout_length=64))
-    result = jarena.training.train_seeds(agent, cartpole, [0, 3], total_steps=4096, validations=2, progress=False,
-                                         run_dir=tmp_path)
+    result = jarena.training.train_seeds(agent, cartpole, [0, 3], total_steps=4096, validations=2, select="last",
+                                         progress=False, run_dir=tmp_path)
     assert len(result.histories) == 2 and len(result.histories[0]) == len(result.histories[1]) >= 2
     for index, seed in enumerate((0, 3)):
         alone = train_and_evaluate(agent, cartpole, jax.random.key(seed), total_steps=4096, progress=False,
@@ -251,6 +251,26 @@ def test_seeds_train_at_once_each_as_its_own_run(cartpole, tmp_path):
         jarena.training.train_seeds(agent, cartpole, [1, 1], progress=False)
     with pytest.raises(ValueError, match="validations must be a whole number >= 0"):
         jarena.training.train_seeds(agent, cartpole, [1, 2], validations=-1, progress=False)
+
+
+def test_seeds_keep_each_seeds_best_validated_policy(cartpole, tmp_path):
+    """With validations, each seed's policy is chosen as train_and_evaluate chooses: the scripted policy balances
+    only after chunks 4 and 6, so best keeps chunk 6's for every seed (500) and last evaluates chunk 20's (the pole
+    falls); without validations best falls back to the last, saying so."""
+    agent = scripted_trainer((4, 6))
+    best = jarena.training.train_seeds(agent, cartpole, [0, 1], validations=10, progress=False, run_dir=tmp_path)
+    for evaluation in best.evaluations:
+        assert evaluation.selected == {"select": "best", "update": 6, "env_steps": 600, "validation_return": 500.0}
+        assert evaluation.summary()["return_mean"] == 500.0
+    assert "best, step 600" in best.table()
+    saved = json.loads((tmp_path / "seed_1" / "evaluation.json").read_text())
+    assert saved["selected"]["update"] == 6
+    last = jarena.training.train_seeds(agent, cartpole, [0, 1], validations=10, select="last", progress=False)
+    assert all(e.selected["select"] == "last" and e.summary()["return_mean"] < 50 for e in last.evaluations)
+    unvalidated = jarena.training.train_seeds(agent, cartpole, [0, 1], progress=False)
+    assert all(e.selected["select"] == "last (nothing validated)" for e in unvalidated.evaluations)
+    with pytest.raises(ValueError, match="unknown select 'worst'"):
+        jarena.training.train_seeds(agent, cartpole, [0, 1], select="worst", progress=False)
 
 
 def test_the_command_line_trains_several_seeds_at_once(tmp_path, capsys):
