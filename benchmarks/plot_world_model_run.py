@@ -5,8 +5,8 @@ environment steps each, as DreamerV3 counts them.
 
     python benchmarks/plot_world_model_run.py benchmarks/world_model_runs/dreamer-walker-walk-100k --task walker-walk
 
-Several run directories (seeds of one config) are drawn on the same axes, one colour each; a run cut before its
-final evaluation shows what it logged.
+Several run directories (seeds of one config, or the ``seed_<s>`` folders of a ``jarena train --seeds N`` run) are
+drawn on the same axes, one colour each; a run cut before its final evaluation shows what it logged.
 """
 
 from __future__ import annotations
@@ -38,7 +38,9 @@ def load(run_dir: Path) -> dict:
     """A run directory's curves: training episodes, validations, the final evaluation (None for a run that was cut
     before it), the seconds at each chunk, its config and the environment steps per logged step."""
     every = rows(run_dir / "train.csv")
-    config = json.loads((run_dir / "config.json").read_text())
+    # a seed of `jarena train --seeds N` (RUN/seed_<s>) shares its run's config.json
+    config_path = run_dir / "config.json" if (run_dir / "config.json").exists() else run_dir.parent / "config.json"
+    config = json.loads(config_path.read_text())
     repeat = re.search(r"repeat\((\d+)\)", config["arena"])
     final = None
     if (run_dir / "evaluation.json").exists():
