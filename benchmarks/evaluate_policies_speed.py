@@ -1,8 +1,8 @@
 """P policies of one agent evaluated one after another (``jarena.evaluate`` each) against all at once
 (``jarena.evaluate_policies``, one batch of P x N arenas): seconds per call after a compiling call, best of
 ``--repeats``, whether the per-episode returns are equal, and each policy's mean return both ways (batched
-operations may round differently, which chaotic physics such as a walker's can grow). The policies are PPO's initial networks from P keys, acting
-greedily (what is timed is the evaluation loop, not what the policies learned).
+operations may round differently, which chaotic physics such as a walker's can grow). The policies are PPO's
+initial networks from P keys, acting greedily (what is timed is the evaluation loop, not what the policies learned).
 
     python benchmarks/evaluate_policies_speed.py --arena "dmc|domain:walker,task:walk,time_limit:200" --policies 3
 """
