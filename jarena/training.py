@@ -355,9 +355,7 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
         raise ValueError(f"train_seeds needs one or more distinct seeds, got {seeds}")
     for name, value in (("total_steps", total_steps), ("chunk_updates", chunk_updates)):
         _positive_or_none(name, value)
-    if validate_every is not None and (isinstance(validate_every, bool) or not isinstance(validate_every, int)
-                                       or validate_every < 0):
-        raise ValueError(f"validate_every must be a whole number of chunks >= 0 (0: never), got {validate_every!r}")
+    _counts_or_none("validate_every", validate_every)
     if isinstance(validations, bool) or not isinstance(validations, int) or validations < 0:
         raise ValueError(f"validations must be a whole number >= 0 (0: never), got {validations!r}")
     rule = selection(select)
@@ -365,8 +363,6 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
     _check_same_specs(arena, eval_arena)
     steps_per_update = agent.settings.steps_per_update
     total_steps = total_steps or agent.settings.total_steps
-    if validate_every is None and validations == 0:
-        validate_every = 0
     num_chunks, chunk_updates, validate_every = training_schedule(agent.settings, total_steps, chunk_updates,
                                                                   validate_every, validations)
     num_updates = num_chunks * chunk_updates
@@ -517,11 +513,13 @@ def training_schedule(settings, total_steps: int | None, chunk_updates: int | No
                       validations: int) -> tuple[int, int, int]:
     """``(num_chunks, chunk_updates, validate_every)`` of a run: equal chunks (one compilation; may add less
     than a chunk of steps), about 20 of them by default, validated every ``validate_every`` chunks and after
-    the last (0: never), by default at most ``validations`` times in all, as evenly as the chunks allow."""
+    the last (0: never), by default at most ``validations`` times in all (0: never), as evenly as the chunks
+    allow."""
     num_updates = max(1, math.ceil((total_steps or settings.total_steps) / settings.steps_per_update))
     chunk_updates = chunk_updates or max(1, math.ceil(num_updates / 20))
     num_chunks = math.ceil(num_updates / chunk_updates)
-    validate_every = math.ceil(num_chunks / validations) if validate_every is None else validate_every
+    if validate_every is None:
+        validate_every = math.ceil(num_chunks / validations) if validations else 0
     return num_chunks, chunk_updates, validate_every
 
 
