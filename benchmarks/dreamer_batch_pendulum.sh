@@ -9,6 +9,7 @@
 #   c: as b with the three learning rates doubled
 #   d: 16 arenas, batches of 32                       (2,000 in all)
 #   e: as b with the three learning rates four times  (the rates scaled with the batch)
+#   f: as b with the model's rate four times, the actor's and critic's doubled
 # Usage (about 2-3 minutes a run on 2 CPU cores): bash benchmarks/dreamer_batch_pendulum.sh [SEEDS] [OUT_DIR]
 # ONLY="c e" runs those variants alone; VALIDATIONS=4 validates 4 times a run (the table then also shows the
 # validation returns, the earliest first, to compare how fast the variants learn).
@@ -22,6 +23,7 @@ VARIANTS=(
   "c|--set num_arenas=32 --set batch_size=64 --set model_learning_rate=2e-3 --set actor_learning_rate=2e-4 --set critic_learning_rate=2e-4"
   "d|--set num_arenas=16 --set batch_size=32"
   "e|--set num_arenas=32 --set batch_size=64 --set model_learning_rate=4e-3 --set actor_learning_rate=4e-4 --set critic_learning_rate=4e-4"
+  "f|--set num_arenas=32 --set batch_size=64 --set model_learning_rate=4e-3 --set actor_learning_rate=2e-4 --set critic_learning_rate=2e-4"
 )
 ONLY=${ONLY:-}
 VALIDATIONS=${VALIDATIONS:-0}

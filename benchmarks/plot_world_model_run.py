@@ -6,7 +6,8 @@ environment steps each, as DreamerV3 counts them.
     python benchmarks/plot_world_model_run.py benchmarks/world_model_runs/dreamer-walker-walk-100k --task walker-walk
 
 Several run directories (seeds of one config, or the ``seed_<s>`` folders of a ``jarena train --seeds N`` run) are
-drawn on the same axes, one colour each; a run cut before its final evaluation shows what it logged.
+drawn on the same axes, one colour each (a ``--seeds N`` run directory stands for its seed folders); a run cut
+before its final evaluation shows what it logged.
 """
 
 from __future__ import annotations
@@ -52,6 +53,20 @@ def load(run_dir: Path) -> dict:
             "per_decision": int(repeat.group(1)) if repeat else 1}
 
 
+def seed_dirs(run_dir: Path) -> list[Path]:
+    """``run_dir`` itself, or the ``seed_<s>`` folders of a ``jarena train --seeds N`` run, in seed order."""
+    if (run_dir / "train.csv").exists():
+        return [run_dir]
+    seeds = sorted(run_dir.glob("seed_*/train.csv"), key=lambda p: int(p.parent.name.removeprefix("seed_")))
+    if not seeds:
+        raise SystemExit(f"{run_dir}: no train.csv, nor seed_<s>/train.csv folders of a --seeds run")
+    return [p.parent for p in seeds]
+
+
+def label_of(run_dir: Path) -> str:
+    return run_dir.name.replace("_", " ") if run_dir.name.startswith("seed_") else run_dir.name
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run_dirs", type=Path, nargs="+", help="one run directory, or several (seeds) to overlay")
@@ -59,10 +74,12 @@ def main() -> None:
     parser.add_argument("--labels", default=None, help="comma-separated names of the runs (default: their folders)")
     parser.add_argument("--out", type=Path, default=None, help="default: RUN_DIR/curve.png (the first run's)")
     args = parser.parse_args()
-    runs = [load(d) for d in args.run_dirs]
-    labels = args.labels.split(",") if args.labels else [d.name for d in args.run_dirs]
+    run_dirs = [seed for d in args.run_dirs for seed in seed_dirs(d)]
+    runs = [load(d) for d in run_dirs]
+    labels = args.labels.split(",") if args.labels else [label_of(d) for d in run_dirs]
     if len(labels) != len(runs):
-        parser.error(f"--labels names {len(labels)} runs; {len(runs)} run directories were given")
+        parser.error(f"--labels names {len(labels)} runs; {len(runs)} run directories were given "
+                     f"({', '.join(map(str, run_dirs))})")
     several = len(runs) > 1
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for i, (run, label) in enumerate(zip(runs, labels, strict=True)):

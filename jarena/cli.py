@@ -268,8 +268,8 @@ def _train_seeds(args, agent, arena, eval_arena, say) -> int:
         f"each seed's {args.select} policy on the eval episodes:")
     say(result.table())
     if args.run_dir:
-        say(f"run directory: {args.run_dir} (config.json, seeds.csv, seed_<s>/ with train.csv, validation.csv, "
-            f"evaluation.json and learning_curve.png)")
+        say(f"run directory: {args.run_dir} (config.json, seeds.csv, checkpoints/, seed_<s>/ with train.csv, "
+            f"validation.csv, evaluation.json and learning_curve.png)")
     return 0
 
 
@@ -422,7 +422,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seeds", type=int, default=1, metavar="N",
                    help="train N seeds (--seed .. --seed + N - 1) at once in one compiled program (for runs that leave "
                         "the device idle), validating them together, and evaluate each seed's policy chosen by "
-                        "--select (no checkpoints)")
+                        "--select (with --run-dir it checkpoints, and the same command resumes it)")
     p.add_argument("--eval-arena", default=None, metavar="ARENA",
                    help="validate and evaluate on this arena's episodes instead (the same observation and action "
                         "specs): train on cheaper physics, e.g. \"dmc|domain:walker,task:walk,iterations:2\", and "

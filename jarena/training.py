@@ -318,8 +318,8 @@ class SeedsResult:
 
 def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, chunk_updates: int | None = None,
                 validate_every: int | None = None, validations: int = 0, select: str = "best",
-                run_dir: str | Path | None = None, progress: bool = True,
-                eval_arena: Arena | None = None) -> SeedsResult:
+                checkpoint_every: int | None = None, run_dir: str | Path | None = None, progress: bool = True,
+                stop_after_chunks: int | None = None, eval_arena: Arena | None = None) -> SeedsResult:
     """Trains ``agent`` once per seed, all seeds in one compiled program (the agent's training vmapped over a
     leading seed axis), validating all seeds at once as it goes, then evaluates each seed's final policy on the
     eval episodes (all seeds in one batch: :func:`jarena.runners.evaluate.evaluate_policies`), each seed's policy
@@ -328,9 +328,9 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
     Meant for runs that leave the device idle (a world model's gradient step on a batch of 16 sequences, a
     collection step of a few arenas), where S seeds should cost little more than one. Seed ``s``'s run is the run
     :func:`train_and_evaluate` makes with ``jax.random.key(s)`` (the same updates, validations and selection;
-    batched operations may round differently), without its checkpoints: a stopped call starts again from the
-    beginning, and the kept policies are host copies. Each seed holds its own training state
-    (replay buffer, or a dataset agent's copy of its data): memory grows with the seeds.
+    batched operations may round differently). With a run directory the run checkpoints, as
+    :func:`train_and_evaluate` does, and a call with the same directory and seeds resumes it. Each seed holds its
+    own training state (replay buffer, or a dataset agent's copy of its data): memory grows with the seeds.
 
     Args:
       agent: a trainable agent.
@@ -343,19 +343,27 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
       validations: how many times (at most) the run validates when ``validate_every`` is not given.
       select: which policy of each seed the final evaluation runs (:func:`train_and_evaluate`'s ``select``);
         without validations, the last.
+      checkpoint_every: with ``run_dir``, checkpoint every this many chunks and after the last (default: 5; 0:
+        never) under ``run_dir/checkpoints``: every seed's training state and the policies kept so far. A call
+        with the same ``run_dir`` resumes from the latest checkpoint (saying so) and continues bit for bit; one
+        with other seeds is a ``ValueError``.
       run_dir: if given, writes ``config.json``, ``seed_<s>/train.csv``, ``seed_<s>/validation.csv``,
         ``seed_<s>/evaluation.json`` and ``seed_<s>/learning_curve.png`` per seed, and ``seeds.csv`` (one row per
         seed: its evaluation summary).
       progress: a progress bar over the environment steps of one seed.
+      stop_after_chunks: stop (without evaluating) after this many chunks in this call, as an interruption would;
+        ``evaluations`` is then empty. For tests and time-sliced jobs.
       eval_arena: validate and evaluate on this arena instead (the same specs), as :func:`train_and_evaluate`'s.
     """
     _check_trainable(agent)
     seeds = [int(s) for s in seeds]
     if not seeds or len(set(seeds)) != len(seeds):
         raise ValueError(f"train_seeds needs one or more distinct seeds, got {seeds}")
-    for name, value in (("total_steps", total_steps), ("chunk_updates", chunk_updates)):
+    for name, value in (("total_steps", total_steps), ("chunk_updates", chunk_updates),
+                        ("stop_after_chunks", stop_after_chunks)):
         _positive_or_none(name, value)
     _counts_or_none("validate_every", validate_every)
+    _counts_or_none("checkpoint_every", checkpoint_every)
     if isinstance(validations, bool) or not isinstance(validations, int) or validations < 0:
         raise ValueError(f"validations must be a whole number >= 0 (0: never), got {validations!r}")
     rule = selection(select)
@@ -383,10 +391,43 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
     histories: list[list[dict[str, float]]] = [[] for _ in seeds]
     validated: list[list[dict[str, float]]] = [[] for _ in seeds]
     kept: list[tuple[Any, dict] | None] = [None for _ in seeds]  # per seed: (host copy of its policy, its row)
+    checkpoint_every = 5 if checkpoint_every is None else checkpoint_every
+    checkpointer = Checkpointer(run_path / "checkpoints") if run_path is not None and checkpoint_every else None
+    first_chunk = 0
+    if checkpointer is not None and checkpointer.latest_step() is not None:
+        first_chunk = checkpointer.latest_step()
+        template = {"train": train_state, "kept": policies(train_state)}
+        restored, meta = checkpointer.restore(template, first_chunk)
+        if meta.get("seeds") != seeds:
+            checkpointer.close()
+            raise ValueError(f"{run_path} holds a run of seeds {meta.get('seeds')}, not {seeds}: resume it with "
+                             f"those seeds, or give another run directory")
+        train_state, histories, validated = restored["train"], meta["histories"], meta["validations"]
+        kept_policies = jax.device_get(restored["kept"])
+        kept = [None if row is None else (jax.tree_util.tree_map(lambda x, i=i: x[i], kept_policies), row)
+                for i, row in enumerate(meta["kept_rows"])]
+        _say(True, f"resuming from step {first_chunk * chunk_updates * steps_per_update} of "
+                   f"{num_updates * steps_per_update} (checkpoint {checkpointer.directory / str(first_chunk)})")
     bar = _progress(num_updates * steps_per_update, progress)
-    start, done = time.perf_counter(), 0
+    bar.update(first_chunk * chunk_updates * steps_per_update, _mean_row([h[-1] for h in histories]) if first_chunk
+               else {})
+    done = first_chunk * chunk_updates
+    start = time.perf_counter() - (histories[0][-1]["seconds"] if first_chunk else 0.0)
+
+    def save(chunks: int) -> None:
+        current = jax.device_get(policies(train_state)) if not all(kept) else None
+        kept_policies = jax.tree_util.tree_map(lambda *xs: np.stack(xs), *[
+            k[0] if k is not None else jax.tree_util.tree_map(lambda x, i=i: x[i], current)
+            for i, k in enumerate(kept)])
+        checkpointer.save(chunks, {"train": train_state, "kept": kept_policies},
+                          {"seeds": seeds, "histories": histories, "validations": validated,
+                           "kept_rows": [None if k is None else k[1] for k in kept]})
+
     try:
-        for index in range(num_chunks):
+        for ran, index in enumerate(range(first_chunk, num_chunks)):
+            if stop_after_chunks is not None and ran >= stop_after_chunks:
+                return SeedsResult(train_state=train_state, histories=histories, evaluations=[], seeds=seeds,
+                                   validations=validated)
             n = min(chunk_updates, num_updates - done)
             train_state, metrics = chunk(train_state, n)
             metrics = jax.device_get(metrics)
@@ -408,8 +449,12 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
                 for seed, history, rows in zip(seeds, histories, validated, strict=True):
                     _write_csv(run_path / f"seed_{seed}" / "train.csv", history)
                     _write_csv(run_path / f"seed_{seed}" / "validation.csv", rows)
+            if checkpointer is not None and ((index + 1) % checkpoint_every == 0 or index + 1 == num_chunks):
+                save(index + 1)
     finally:
         bar.close()
+        if checkpointer is not None:
+            checkpointer.close()
     final = jax.device_get(policies(train_state)) if not all(kept) else None
     chosen = [k[0] if k is not None else jax.tree_util.tree_map(lambda x, i=i: x[i], final)
               for i, k in enumerate(kept)]

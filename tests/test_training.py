@@ -273,13 +273,48 @@ def test_seeds_keep_each_seeds_best_validated_policy(cartpole, tmp_path):
         jarena.training.train_seeds(agent, cartpole, [0, 1], select="worst", progress=False)
 
 
+def test_seeds_resume_from_their_checkpoint(cartpole, tmp_path, capsys):
+    """A several-seed run stopped after 7 chunks resumes from its checkpoint after chunk 5 (the default: every 5
+    chunks): its curves, validations and choice equal an uninterrupted run's, and the policy kept before the stop
+    (chunk 4's, then chunk 6's again) is the one evaluated (500; the final policy drops the pole)."""
+    agent = scripted_trainer((4, 6))
+    whole = jarena.training.train_seeds(agent, cartpole, [0, 1], validations=10, progress=False)
+    stopped = jarena.training.train_seeds(agent, cartpole, [0, 1], validations=10, progress=False, run_dir=tmp_path,
+                                          stop_after_chunks=7)
+    assert stopped.evaluations == [] and [len(h) for h in stopped.histories] == [7, 7]
+    assert (tmp_path / "checkpoints" / "5").is_dir()
+    resumed = jarena.training.train_seeds(agent, cartpole, [0, 1], validations=10, progress=False, run_dir=tmp_path)
+    assert "resuming from step 500 of 2000" in capsys.readouterr().out
+    for ours, theirs in ((resumed, whole),):
+        for a, b in zip(ours.histories, theirs.histories, strict=True):
+            assert [{k: v for k, v in r.items() if k != "seconds"} for r in a] == \
+                [{k: v for k, v in r.items() if k != "seconds"} for r in b]
+        assert ours.validations == theirs.validations
+    assert [e.selected for e in resumed.evaluations] == [e.selected for e in whole.evaluations]
+    assert all(e.selected["update"] == 6 and e.summary()["return_mean"] == 500.0 for e in resumed.evaluations)
+    # stopped after chunk 7 with a checkpoint after it, the kept policy (chunk 6's) comes back from the checkpoint
+    again = tmp_path / "again"
+    jarena.training.train_seeds(agent, cartpole, [0, 1], validations=10, progress=False, run_dir=again,
+                                checkpoint_every=7, stop_after_chunks=7)
+    finished = jarena.training.train_seeds(agent, cartpole, [0, 1], validations=10, progress=False, run_dir=again,
+                                           checkpoint_every=7)
+    assert all(e.selected["update"] == 6 and e.summary()["return_mean"] == 500.0 for e in finished.evaluations)
+    with open(again / "seed_1" / "validation.csv") as f:
+        assert [float(r["update"]) for r in csv.DictReader(f)] == list(range(2, 21, 2))
+    with pytest.raises(ValueError, match=r"holds a run of seeds \[0, 1\], not \[0, 2\]"):
+        jarena.training.train_seeds(agent, cartpole, [0, 2], progress=False, run_dir=tmp_path)
+    with pytest.raises(ValueError, match="checkpoint_every"):
+        jarena.training.train_seeds(agent, cartpole, [0, 1], progress=False, checkpoint_every=-1)
+
+
 def test_the_command_line_trains_several_seeds_at_once(tmp_path, capsys):
     code = main(["train", "ppo", CARTPOLE, "--seeds", "2", "--seed", "5", "--steps", "2048", "--set", "num_arenas=8",
                  "--set", "rollout_length=64", "--no-progress", "--run-dir", str(tmp_path)])
     assert code == 0
     out = capsys.readouterr().out
     assert "seeds 5 to 6, at once" in out and "all 2 |" in out
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["config.json", "seed_5", "seed_6", "seeds.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["checkpoints", "config.json", "seed_5", "seed_6",
+                                                          "seeds.csv"]
     for seed in (5, 6):  # validated 10 times, as a single run by default
         with open(tmp_path / f"seed_{seed}" / "validation.csv") as f:
             assert len(list(csv.DictReader(f))) >= 2
