@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # Dreamer's update cost by variant (benchmarks/dreamer_step.py), one variant per GPU at a time, each in its own
-# process: the 2023 walker config as committed, with larger batches at the same replay ratio (fewer gradient steps
-# per update), collection alone, more arenas, unrolled scans and XLA's command buffers; for an ARENA from pixels,
-# float32 against bfloat16, collection alone and smaller batches. One JSON line per variant in
-# RESULTS_DIR/dreamer_step.jsonl (default /tmp/res).
+# process: the walker's default config as committed, in bfloat16, collection alone, with unrolled scans and with
+# XLA's command buffers (CUDA graphs, for a scan bound by kernel launches); for an ARENA from pixels, float32 against
+# bfloat16, collection alone and smaller batches. One JSON line per variant in RESULTS_DIR/dreamer_step.jsonl
+# (default /tmp/res). ONLY="0 2" runs those variants alone (their indices in the list).
 # Usage, on the GPU machine from the project root after `source .gpu/setup.sh`:
-#   bash benchmarks/dreamer_step_variants.sh ["ARENA"]
+#   bash benchmarks/dreamer_step_variants.sh ["ARENA"]      # STEP_ARGS="--updates 10 --repeats 2": shorter timings
 set -u
 cd "$(dirname "$0")"
 D=${1:-"dmc|domain:walker,task:walk"}
@@ -20,22 +20,22 @@ PIXEL_VARIANTS=(  # an arena from pixels: where the encoder's and decoder's time
   "|--set batch_size=16 --set compute_dtype=bfloat16"
   "$CB|--set compute_dtype=bfloat16"
 )
-VARIANTS=(
+VARIANTS=(  # the default from states (64 arenas, batches of 64 x 64): is the RSSM's scan bound by kernel launches?
   "|"
-  "|--set batch_size=32"
-  "|--set batch_size=64"
+  "|--set compute_dtype=bfloat16"
   "|--set learning_starts=100000000"
-  "|--set num_arenas=64 --set batch_size=64"
   "|--set scan_unroll=8"
   "$CB|"
-  "$CB|--set batch_size=64 --set scan_unroll=8"
+  "$CB|--set scan_unroll=8"
 )
 case "$D" in *pixels*) VARIANTS=("${PIXEL_VARIANTS[@]}") ;; esac
 i=0
-for v in "${VARIANTS[@]}"; do
+for index in "${!VARIANTS[@]}"; do
+  v=${VARIANTS[$index]}
+  [ -n "${ONLY:-}" ] && [[ " $ONLY " != *" $index "* ]] && continue
   env_part=${v%%|*}; args=${v#*|}
   # shellcheck disable=SC2086  # the settings split into words on purpose
-  CUDA_VISIBLE_DEVICES=$(( i % GPUS )) timeout 900 env $env_part python dreamer_step.py "$D" $args \
+  CUDA_VISIBLE_DEVICES=$(( i % GPUS )) timeout 900 env $env_part python dreamer_step.py "$D" $args ${STEP_ARGS:-} \
     >> "$R/dreamer_step.jsonl" 2> "$R/dreamer_step_$i.err" &
   i=$(( i + 1 ))
   if (( i % GPUS == 0 )); then wait; fi
