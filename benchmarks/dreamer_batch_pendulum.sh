@@ -12,7 +12,8 @@
 #   f: as b with the model's rate four times, the actor's and critic's doubled
 # Usage (about 2-3 minutes a run on 2 CPU cores): bash benchmarks/dreamer_batch_pendulum.sh [SEEDS] [OUT_DIR]
 # ONLY="c e" runs those variants alone; VALIDATIONS=4 validates 4 times a run (the table then also shows the
-# validation returns, the earliest first, to compare how fast the variants learn).
+# validation returns, the earliest first, to compare how fast the variants learn). EXTRA="--set KEY=VALUE ..." adds
+# settings to every variant (e.g. EXTRA="--set actor_gradient=backprop").
 set -u
 SEEDS=${1:-3}
 OUT=${2:-$(mktemp -d)}
@@ -35,7 +36,7 @@ for seed in $(seq 0 $((SEEDS - 1))); do
     [ -n "$ONLY" ] && [[ " $ONLY " != *" $name "* ]] && continue
     start=$(date +%s)
     # shellcheck disable=SC2086  # the settings split into words on purpose
-    jarena train dreamer "$A" --set rollout_length=1 --set replay_ratio=200 --set buffer_size=16000 ${v#*|} \
+    jarena train dreamer "$A" --set rollout_length=1 --set replay_ratio=200 --set buffer_size=16000 ${v#*|} ${EXTRA:-} \
       --seed "$seed" --validations "$VALIDATIONS" --select last --videos 0 --no-progress --run-dir "$OUT/$name$seed" \
       > "$OUT/$name$seed.log" 2>&1 || { echo "| $name | $seed | failed: $OUT/$name$seed.log | | |"; continue; }
     ret=$(python -c "import json,sys; print(round(json.load(open(sys.argv[1]))['summary']['return_mean'], 1))" \

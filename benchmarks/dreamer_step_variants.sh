@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Dreamer's update cost by variant (benchmarks/dreamer_step.py), one variant per GPU at a time, each in its own
 # process: the walker's default config as committed, in bfloat16, collection alone, with unrolled scans and with
-# XLA's command buffers (CUDA graphs, for a scan bound by kernel launches); for an ARENA from pixels, float32 against
+# XLA's command buffers (CUDA graphs, for a scan bound by kernel launches), and the actor trained through the
+# imagination (actor_gradient=backprop, its backward pass); for an ARENA from pixels, float32 against
 # bfloat16, collection alone and smaller batches. One JSON line per variant in RESULTS_DIR/dreamer_step.jsonl
 # (default /tmp/res). ONLY="0 2" runs those variants alone (their indices in the list).
 # Usage, on the GPU machine from the project root after `source .gpu/setup.sh`:
@@ -27,6 +28,7 @@ VARIANTS=(  # the default from states (64 arenas, batches of 64 x 64): is the RS
   "|--set scan_unroll=8"
   "$CB|"
   "$CB|--set scan_unroll=8"
+  "|--set actor_gradient=backprop"
 )
 case "$D" in *pixels*) VARIANTS=("${PIXEL_VARIANTS[@]}") ;; esac
 i=0

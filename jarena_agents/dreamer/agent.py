@@ -11,11 +11,16 @@ lambda-returns with an entropy bonus and the critic (two-hot) on the returns and
 - Discrete(n) actions: a categorical over n classes with 1% of the uniform mixed in ("unimix"), sampled as
   one-hot vectors with straight-through gradients; the world model reads the one-hot vector, the arena the index.
 
-The actor's loss is REINFORCE for both, as DreamerV3's: its discrete actors always (``actor_grad_disc:
-reinforce``), and in its latest version every actor (``logpi * sg(adv)``), on advantages normalised by the
-return scale, with entropy regularisation 3e-4 (``entropy_coef``). The imagined trajectories and actions are
-constants of that loss; the samples' straight-through gradients would matter only to a loss that
-backpropagates through the model's imagination.
+How the actor learns (``actor_gradient``), on advantages normalised by the return scale, with entropy
+regularisation 3e-4 (``entropy_coef``):
+
+- ``"reinforce"`` (default): ``logpi * sg(adv)`` for every actor, as DreamerV3's latest version; the imagined
+  trajectories and actions are constants of the loss.
+- ``"backprop"``: for Box actions, the advantage itself is maximised through the world model's imagination
+  (reparameterised action samples, the model's straight-through latent samples, its reward head and the critic),
+  as DreamerV3's 2023 version behind its published Control Suite scores (``actor_grad_cont: backprop``); the
+  actor reads the states with their gradients stopped, and the model and critic are not changed by this loss.
+  Discrete actors learn by REINFORCE either way (``actor_grad_disc: reinforce``).
 """
 
 from __future__ import annotations
@@ -39,7 +44,7 @@ from jarena.core.types import ArenaState, Info
 from jarena.data.buffer import make_buffer
 from jarena.data.buffer_state import BufferState
 from jarena.data.experience import experience_spec
-from jarena_agents.config import at_least, in_unit_interval, make_config, non_negative, positive
+from jarena_agents.config import ConfigError, at_least, in_unit_interval, make_config, non_negative, positive
 from jarena_agents.dreamer import losses
 from jarena_agents.networks import Gaussian, to_env_action
 from jarena_agents.planners.model import is_bounded_continuous
@@ -70,6 +75,11 @@ class DreamerConfig(online.OnlineConfig):
     # the slow critic's update after every critic step: slow <- slow + rate (critic - slow)
     slow_critic_rate: float = in_unit_interval(0.02, open_low=True)
     exploration_noise: float = non_negative(0.0)  # the actor samples; no extra noise
+    # "reinforce" or "backprop" (Box actions: through the model's imagination, DreamerV3 2023's continuous actors)
+    actor_gradient: str = "reinforce"
+
+
+ACTOR_GRADIENTS = ("reinforce", "backprop")
 
 
 @struct.dataclass
@@ -178,15 +188,22 @@ def env_action(spec, raw: jax.Array, dist) -> jax.Array:
 
 def model_action(spec, raw: jax.Array, dist) -> jax.Array:
     """A raw action (*, ...) as the world model reads it, (*, A): the one-hot itself (straight-through), or
-    the Box action in the arena's units (as the buffer holds it)."""
+    the Box action in the arena's units (as the buffer holds it), its clip to the bounds straight-through (the
+    gradient of the raw sample passes, as DreamerV3's unclipped imagined actions)."""
     if isinstance(spec, Discrete):
         return raw
-    return wm.action_vector(spec, to_env_action(spec, raw, dist), raw.ndim - 1)
+    unit = (raw - jax.lax.stop_gradient(raw)) + jax.lax.stop_gradient(dist.unit(raw))  # the clip's value exactly
+    low, high = jnp.asarray(spec.low, jnp.float32), jnp.asarray(spec.high, jnp.float32)
+    action = low + (unit.reshape(raw.shape[:-1] + spec.shape) + 1.0) * 0.5 * (high - low)  # as to_env_action
+    return wm.action_vector(spec, action.astype(spec.dtype), raw.ndim - 1)
 
 
 def make_dreamer(config=None) -> TrainableAgent:
     cfg = make_config(DreamerConfig, config, agent="dreamer")
     cfg = online.check_online_config(cfg, "dreamer")
+    if cfg.actor_gradient not in ACTOR_GRADIENTS:
+        raise ConfigError(f"config key 'actor_gradient' of agent 'dreamer' must be one of {list(ACTOR_GRADIENTS)}, "
+                          f"got {cfg.actor_gradient!r}")
     model_cfg = cfg.model_config()
     compute = wm.compute_dtype(model_cfg, "dreamer")
     buffer = make_buffer(cfg.num_arenas, cfg.buffer_size, cfg.batch_size, mode="window", length=cfg.sequence_length)
@@ -272,35 +289,60 @@ def make_dreamer(config=None) -> TrainableAgent:
         model = world_model(spec)
         net = actor(spec)
         keys = jax.random.split(key, cfg.imagination_horizon)
+        backprop = cfg.actor_gradient == "backprop" and not isinstance(spec.action, Discrete)
 
-        def imagine(latent, key):
-            action_key, model_key = jax.random.split(key)
-            dist = actor_distribution(spec.action, net.apply(learner.actor, latent.features()))
-            raw = dist.sample(action_key)
-            action = model_action(spec.action, raw, dist)
-            following, _ = model.rssm.apply(learner.model["rssm"], latent, action, model_key,
-                                            method=RSSMCell.img_step)
-            return following, (latent, raw)
+        def imagine(actor_params):
+            """The imagined trajectory (H + 1, N) from ``starts`` and the raw actions (H, N, A); the actor reads
+            each state with its gradient stopped, so a gradient reaches it through its actions alone."""
+            def step(latent, key):
+                action_key, model_key = jax.random.split(key)
+                out = net.apply(actor_params, jax.lax.stop_gradient(latent.features()))
+                dist = actor_distribution(spec.action, out)
+                raw = dist.sample(action_key)
+                following, _ = model.rssm.apply(learner.model["rssm"], latent, model_action(spec.action, raw, dist),
+                                                model_key, method=RSSMCell.img_step)
+                return following, (latent, raw)
 
-        last, (latents, raws) = jax.lax.scan(imagine, starts, keys, unroll=cfg.scan_unroll)
-        trajectory = jax.tree_util.tree_map(lambda xs, x: jnp.concatenate([xs, x[None]], 0), latents, last)
-        trajectory = jax.lax.stop_gradient(trajectory)  # (H + 1, N)
-        raws = jax.lax.stop_gradient(raws)  # (H, N, A): REINFORCE, as DreamerV3 for discrete and Box actions
-        features = trajectory.features()
-        rewards = wm.predict_reward(model, learner.model, trajectory)
-        continues = wm.continue_probability(model, learner.model, trajectory)
-        values = distributions.two_hot_mean(critic().apply(learner.critic, features), model.centres)
+            last, (latents, raws) = jax.lax.scan(step, starts, keys, unroll=cfg.scan_unroll)
+            return jax.tree_util.tree_map(lambda xs, x: jnp.concatenate([xs, x[None]], 0), latents, last), raws
+
+        def score(trajectory: Latent):
+            """Rewards, continuation probabilities and values (H + 1, N) of ``trajectory``, its lambda-returns
+            (H, N) and weights (H, N)."""
+            rewards = wm.predict_reward(model, learner.model, trajectory)
+            continues = wm.continue_probability(model, learner.model, trajectory)
+            values = distributions.two_hot_mean(critic().apply(learner.critic, trajectory.features()), model.centres)
+            returns = losses.lambda_returns(rewards, continues, values, cfg.discount, cfg.return_lambda,
+                                            cfg.scan_unroll)
+            return values, returns, losses.trajectory_weights(continues, cfg.discount)
+
+        if backprop:
+            def actor_objective(params):
+                trajectory, _ = imagine(params)
+                values, returns, weights = score(trajectory)
+                scale = learner.scale.update(jax.lax.stop_gradient(returns))
+                dist = actor_distribution(spec.action,
+                                          net.apply(params, jax.lax.stop_gradient(trajectory.features()[:-1])))
+                loss = losses.backprop_actor_loss(dist.entropy(), returns, values[:-1], weights, scale.scale,
+                                                  cfg.entropy_coef)
+                return loss, (jnp.mean(dist.entropy()), jax.lax.stop_gradient((trajectory, returns, weights, scale)))
+
+            (actor_value, (entropy, kept)), grads = jax.value_and_grad(actor_objective, has_aux=True)(learner.actor)
+            trajectory, returns, weights, scale = kept
+            features = trajectory.features()
+        else:  # REINFORCE: the imagined trajectory (H + 1, N) and its actions (H, N, A) are constants
+            trajectory, raws = jax.lax.stop_gradient(imagine(learner.actor))
+            features = trajectory.features()
+            values, returns, weights = score(trajectory)
+            scale = learner.scale.update(returns)
+
+            def actor_objective(params):
+                dist = actor_distribution(spec.action, net.apply(params, features[:-1]))
+                return losses.actor_loss(dist.log_prob(raws), dist.entropy(), returns, values[:-1], weights,
+                                         scale.scale, cfg.entropy_coef), jnp.mean(dist.entropy())
+
+            (actor_value, entropy), grads = jax.value_and_grad(actor_objective, has_aux=True)(learner.actor)
         slow_values = distributions.two_hot_mean(critic().apply(learner.slow_critic, features), model.centres)
-        returns = losses.lambda_returns(rewards, continues, values, cfg.discount, cfg.return_lambda, cfg.scan_unroll)
-        weights = losses.trajectory_weights(continues, cfg.discount)
-        scale = learner.scale.update(returns)
-
-        def actor_objective(params):
-            dist = actor_distribution(spec.action, net.apply(params, features[:-1]))
-            return losses.actor_loss(dist.log_prob(raws), dist.entropy(), returns, values[:-1], weights,
-                                     scale.scale, cfg.entropy_coef), jnp.mean(dist.entropy())
-
-        (actor_value, entropy), grads = jax.value_and_grad(actor_objective, has_aux=True)(learner.actor)
         updates, actor_state = actor_opt.update(grads, learner.actor_opt, learner.actor)
         actor_params = optax.apply_updates(learner.actor, updates)
 

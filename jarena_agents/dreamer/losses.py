@@ -9,7 +9,8 @@ start state and H imagined steps (index 0 is the start, whose reward is not used
   percentiles of the returns; advantages are divided by ``max(1, P95 - P5)``, so that large returns are scaled
   down and small ones are not scaled up.
 - :func:`actor_loss`: REINFORCE with the normalised advantage ``sg((R_t - v_t) / max(1, S))`` and an entropy
-  bonus ``eta H[pi]`` (eta = 3e-4), weighted by the probability that the trajectory is still alive.
+  bonus ``eta H[pi]`` (eta = 3e-4), weighted by the probability that the trajectory is still alive;
+  :func:`backprop_actor_loss` maximises the advantage itself, differentiated through the imagination.
 - :func:`critic_loss`: two-hot cross-entropy of the critic against ``sg(R_t)``, plus the same against the slow
   (EMA) critic's prediction, which keeps the critic from drifting (weight 1 as DreamerV3).
 """
@@ -71,6 +72,15 @@ def actor_loss(log_probs: jax.Array, entropies: jax.Array, returns: jax.Array, v
     """Scalar REINFORCE loss over (H, N): ``-mean(w (sg(A) log pi + eta H))``, ``A = (R - v) / scale``."""
     advantage = jax.lax.stop_gradient((returns - values) / scale)
     return -jnp.mean(weights * (advantage * log_probs + entropy_coef * entropies))
+
+
+def backprop_actor_loss(entropies: jax.Array, returns: jax.Array, values: jax.Array, weights: jax.Array,
+                        scale: jax.Array, entropy_coef: float = 3e-4) -> jax.Array:
+    """Scalar loss over (H, N) that maximises the normalised advantage itself, ``-mean(w (A + eta H))`` with
+    ``A = (R - v) / sg(scale)``: ``returns`` and ``values`` carry the gradients of an imagination the actor's
+    actions drove (DreamerV3 2023's ``actor_grad_cont: backprop``); ``weights`` are constants."""
+    advantage = (returns - values) / jax.lax.stop_gradient(scale)
+    return -jnp.mean(jax.lax.stop_gradient(weights) * (advantage + entropy_coef * entropies))
 
 
 def critic_loss(logits: jax.Array, returns: jax.Array, slow_values: jax.Array, weights: jax.Array,

@@ -14,7 +14,7 @@ import jarena
 import jarena_agents
 from jarena.cli import main
 from jarena.runners.evaluate import evaluate
-from jarena_agents.dreamer.agent import bounded_normal, one_hot_categorical
+from jarena_agents.dreamer.agent import bounded_normal, model_action, one_hot_categorical
 
 TINY = dict(num_arenas=2, rollout_length=5, train_steps=2, batch_size=2, sequence_length=4, buffer_size=2 * 40,
             learning_starts=20, total_steps=40, deter=8, stoch=2, classes=3, hidden=8, layers=1, bins=11,
@@ -119,6 +119,36 @@ def test_training_trains_model_actor_and_critic_and_resumes_bit_for_bit(compiled
     data = lambda x: jax.random.key_data(x) if jnp.issubdtype(x.dtype, jax.dtypes.prng_key) else x
     for a, b in zip(jax.tree_util.tree_leaves(whole), jax.tree_util.tree_leaves(resumed), strict=True):
         np.testing.assert_array_equal(data(a), data(b))
+
+
+def test_imagined_box_actions_reach_the_model_clipped_with_their_gradient():
+    """The model reads a Box action clipped to its bounds exactly, and its gradient passes the clip (straight
+    through), so ``actor_gradient: backprop`` reaches the actor from samples outside the bounds too."""
+    spec = jarena.build_arena("classic|domain:pendulum").spec.action  # Box [-2, 2]
+    raw = jnp.array([[-1.7, 0.25, 1.3]]).reshape(3, 1)
+    dist = bounded_normal(jnp.zeros((3, 2)))
+    np.testing.assert_array_equal(model_action(spec, raw, dist), jnp.array([[-2.0], [0.5], [2.0]]))
+    np.testing.assert_allclose(jax.grad(lambda r: jnp.sum(model_action(spec, r, dist)))(raw), 2.0 * jnp.ones((3, 1)))
+
+
+def test_backprop_trains_the_actor_through_the_imagination(pendulum):
+    """``actor_gradient: backprop`` (DreamerV3 2023's Box actors) trains the actor, to another actor than REINFORCE
+    from the same start, and a bad value is refused, naming the choices."""
+    runs = {}
+    for gradient in ("reinforce", "backprop"):
+        agent = jarena_agents.build_agent("dreamer", {**TINY, "actor_gradient": gradient})
+        ts = jax.jit(agent.init_training, static_argnums=1, compiler_options=FAST_COMPILE)(jax.random.key(0), pendulum)
+        train = jax.jit(agent.train, static_argnums=(1, 2), compiler_options=FAST_COMPILE)
+        runs[gradient], metrics = train(ts, pendulum, 4)
+        assert np.all(np.isfinite(np.asarray(metrics["actor_loss"])))
+        assert any(not np.allclose(a, b) for a, b in zip(jax.tree_util.tree_leaves(ts.learner.actor),
+                                                         jax.tree_util.tree_leaves(runs[gradient].learner.actor),
+                                                         strict=True))
+    assert any(not np.allclose(a, b) for a, b in zip(jax.tree_util.tree_leaves(runs["reinforce"].learner.actor),
+                                                     jax.tree_util.tree_leaves(runs["backprop"].learner.actor),
+                                                     strict=True))
+    with pytest.raises(jarena_agents.config.ConfigError, match=r"actor_gradient.*\['reinforce', 'backprop'\]"):
+        jarena_agents.build_agent("dreamer", {**TINY, "actor_gradient": "straight"})
 
 
 def test_dreamer_learns_to_swing_the_pendulum_up():

@@ -53,6 +53,20 @@ def test_actor_loss_is_reinforce_with_an_entropy_bonus():
     np.testing.assert_allclose(grad, [[-0.5, 0.0]], atol=1e-7)  # the advantage is a constant
 
 
+def test_the_backprop_actor_loss_maximises_the_advantage_itself():
+    entropies = jnp.array([[0.5, 0.5]])
+    returns, values = jnp.array([[3.0, 1.0]]), jnp.array([[1.0, 1.0]])
+    weights = jnp.array([[1.0, 0.5]])
+    loss = losses.backprop_actor_loss(entropies, returns, values, weights, jnp.array(2.0), entropy_coef=0.1)
+    # -mean(1 * ((3 - 1) / 2 + 0.05), 0.5 * (0 + 0.05)) = -mean(1.05, 0.025)
+    np.testing.assert_allclose(loss, -0.5375, rtol=1e-6)
+    grads = jax.grad(lambda r, v, w, s: losses.backprop_actor_loss(entropies, r, v, w, s), argnums=(0, 1, 2, 3))(
+        returns, values, weights, jnp.array(2.0))
+    np.testing.assert_allclose(grads[0], [[-0.25, -0.125]], atol=1e-7)  # -w / (scale N): returns carry gradients
+    np.testing.assert_allclose(grads[1], [[0.25, 0.125]], atol=1e-7)
+    assert not np.any(grads[2]) and not np.any(grads[3])  # weights and scale are constants
+
+
 def test_critic_loss_and_slow_critic():
     centres = dist.bins(5, -2.0, 2.0)
     logits = jnp.zeros((2, 3, 5))
