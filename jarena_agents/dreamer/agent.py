@@ -188,14 +188,12 @@ def env_action(spec, raw: jax.Array, dist) -> jax.Array:
 
 def model_action(spec, raw: jax.Array, dist) -> jax.Array:
     """A raw action (*, ...) as the world model reads it, (*, A): the one-hot itself (straight-through), or
-    the Box action in the arena's units (as the buffer holds it), its clip to the bounds straight-through (the
-    gradient of the raw sample passes, as DreamerV3's unclipped imagined actions)."""
+    the Box action in the arena's units (as the buffer holds it), clipped to the bounds: a gradient passes inside
+    them and not beyond, where the arena's action no longer changes (DreamerV3's model, fed the unclipped actions
+    the arena clipped, learns the same flat response)."""
     if isinstance(spec, Discrete):
         return raw
-    unit = (raw - jax.lax.stop_gradient(raw)) + jax.lax.stop_gradient(dist.unit(raw))  # the clip's value exactly
-    low, high = jnp.asarray(spec.low, jnp.float32), jnp.asarray(spec.high, jnp.float32)
-    action = low + (unit.reshape(raw.shape[:-1] + spec.shape) + 1.0) * 0.5 * (high - low)  # as to_env_action
-    return wm.action_vector(spec, action.astype(spec.dtype), raw.ndim - 1)
+    return wm.action_vector(spec, to_env_action(spec, raw, dist), raw.ndim - 1)
 
 
 def make_dreamer(config=None) -> TrainableAgent:
