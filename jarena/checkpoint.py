@@ -63,6 +63,14 @@ class Checkpointer:
                                                         metadata=ocp.args.JsonSave(metadata or {})))
         self.manager.wait_until_finished()
 
+    def metadata(self, step: int | None = None) -> dict:
+        """The JSON metadata saved with ``step`` (default: latest), without reading the state."""
+        step = self.latest_step() if step is None else step
+        if step is None:
+            raise FileNotFoundError(f"no checkpoint in {self.directory}")
+        restored = self.manager.restore(step, args=ocp.args.Composite(metadata=ocp.args.JsonRestore()))
+        return dict(restored["metadata"] or {})
+
     def restore(self, template: Any, step: int | None = None) -> tuple[Any, dict]:
         """Restores the state at ``step`` (default: latest) with the structure of ``template``.
 

@@ -218,6 +218,11 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
     first_chunk = 0
     if checkpointer is not None and checkpointer.latest_step() is not None:
         first_chunk = checkpointer.latest_step()
+        held = checkpointer.metadata(first_chunk).get("seeds")
+        if held is not None:
+            checkpointer.close()
+            raise ValueError(f"{run_path} holds a run of seeds {held} (jarena train --seeds {len(held)}), not of "
+                             f"one: resume it as it was started, or give another run directory")
         restored, meta = checkpointer.restore(train_state, first_chunk)
         if arena.dynamics.on_host:  # a checkpoint holds handles on the last process's simulators, not their state
             restored = fresh_episodes(restored, train_state)
@@ -396,12 +401,14 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
     first_chunk = 0
     if checkpointer is not None and checkpointer.latest_step() is not None:
         first_chunk = checkpointer.latest_step()
+        held = checkpointer.metadata(first_chunk).get("seeds")
+        if held != seeds:
+            checkpointer.close()
+            what = f"a run of seeds {held}" if held is not None else "a run of one seed (no --seeds)"
+            raise ValueError(f"{run_path} holds {what}, not of seeds {seeds}: resume it as it was started, or give "
+                             f"another run directory")
         template = {"train": train_state, "kept": policies(train_state)}
         restored, meta = checkpointer.restore(template, first_chunk)
-        if meta.get("seeds") != seeds:
-            checkpointer.close()
-            raise ValueError(f"{run_path} holds a run of seeds {meta.get('seeds')}, not {seeds}: resume it with "
-                             f"those seeds, or give another run directory")
         train_state, histories, validated = restored["train"], meta["histories"], meta["validations"]
         kept_policies = jax.device_get(restored["kept"])
         kept = [None if row is None else (jax.tree_util.tree_map(lambda x, i=i: x[i], kept_policies), row)

@@ -257,16 +257,27 @@ class Watchdog:
         heartbeat is overdue, so the watchdog watches a few more heartbeats to see whose have stopped."""
         summary = f"{type(error).__name__}: {str(error).strip().splitlines()[0][:300] if str(error).strip() else ''}"
         silent = 2.5 * self.limits.interval + 0.5  # a live process beats every interval
-        settle = time.monotonic() + silent + self.limits.interval
+
+        def missing(now: float) -> tuple[list[int], list[str]]:
+            """The processes silent for longer than ``silent`` (a process's last beat is timed when this process
+            read it, up to an interval or a busy scheduler's delay later), and those that said they stopped."""
+            gone = [p for p, r in sorted(self._others.items())
+                    if r.state == "running" and now - self._seen.get(p, (None, now))[1] > silent]
+            told = [f"process {p} {'was terminated' if r.state == 'terminated' else 'failed'}"
+                    for p, r in sorted(self._others.items()) if r.state in ("failed", "terminated")]
+            return gone, told
+
+        # a dead process shows as silent `silent` seconds after this process last read its beat; a few more
+        # intervals leave room for a slow read, and the wait ends as soon as one shows
+        settle = time.monotonic() + silent + 4 * self.limits.interval
         while time.monotonic() < settle and time.monotonic() - self._last_round < self.limits.heartbeat:
+            if any(missing(time.monotonic())):
+                break
             time.sleep(self.limits.interval / 2)
         now = time.monotonic()
         if now - self._last_round > silent:
             self.fail(f"{self._service_lost('it stopped answering')}, and then {summary}", status)
-        gone = [p for p, r in sorted(self._others.items())
-                if r.state == "running" and now - self._seen.get(p, (None, now))[1] > silent]
-        told = [f"process {p} {'was terminated' if r.state == 'terminated' else 'failed'}"
-                for p, r in sorted(self._others.items()) if r.state in ("failed", "terminated")]
+        gone, told = missing(now)
         if gone:
             self.fail(f"process{'es' if len(gone) > 1 else ''} {', '.join(map(str, gone))} went missing (no "
                       f"heartbeat in {now - max(self._seen[p][1] for p in gone):.0f} s), and the collective with "

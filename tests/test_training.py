@@ -301,8 +301,15 @@ def test_seeds_resume_from_their_checkpoint(cartpole, tmp_path, capsys):
     assert all(e.selected["update"] == 6 and e.summary()["return_mean"] == 500.0 for e in finished.evaluations)
     with open(again / "seed_1" / "validation.csv") as f:
         assert [float(r["update"]) for r in csv.DictReader(f)] == list(range(2, 21, 2))
-    with pytest.raises(ValueError, match=r"holds a run of seeds \[0, 1\], not \[0, 2\]"):
+    with pytest.raises(ValueError, match=r"holds a run of seeds \[0, 1\], not of seeds \[0, 2\]"):
         jarena.training.train_seeds(agent, cartpole, [0, 2], progress=False, run_dir=tmp_path)
+    with pytest.raises(ValueError, match=r"holds a run of seeds \[0, 1\] \(jarena train --seeds 2\), not of one"):
+        train_and_evaluate(agent, cartpole, jax.random.key(0), progress=False, run_dir=tmp_path)
+    single = tmp_path / "single"
+    train_and_evaluate(agent, cartpole, jax.random.key(0), progress=False, run_dir=single, stop_after_chunks=5,
+                       eval_videos=0)
+    with pytest.raises(ValueError, match=r"holds a run of one seed \(no --seeds\), not of seeds \[0, 1\]"):
+        jarena.training.train_seeds(agent, cartpole, [0, 1], progress=False, run_dir=single)
     with pytest.raises(ValueError, match="checkpoint_every"):
         jarena.training.train_seeds(agent, cartpole, [0, 1], progress=False, checkpoint_every=-1)
 
