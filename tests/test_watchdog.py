@@ -4,6 +4,7 @@ stand-in key-value store), and, on real processes launched as a user launches th
 terminated process stops the others within a bounded time and the run resumes from its checkpoints."""
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -171,10 +172,13 @@ def test_a_killed_process_stops_the_others_sigterm_ends_all_and_the_run_resumes(
     first.processes[1].send_signal(signal.SIGKILL)
     start = time.monotonic()
     codes = first.wait(timeout=120)
-    assert time.monotonic() - start < 60
+    # a collective with the killed process fails at once and the watchdog names it as missing; a process waiting in
+    # the checkpoint's own barrier (orbax's, through the coordination service) learns it from the heartbeats that
+    # stopped, after JARENA_HEARTBEAT_TIMEOUT (60 s by default)
+    assert time.monotonic() - start < watchdog.HEARTBEAT_SECONDS + 15
     assert codes[0] != 0
     stopped = first.output(0)
-    assert "process 1 went missing" in stopped, stopped[-3000:]
+    assert re.search(r"process 1 (went missing|stopped responding: no heartbeat)", stopped), stopped[-3000:]
     assert f"the run resumes from its last checkpoint in {run / 'checkpoints'}" in stopped
 
     second = _Launch(run)  # the same command: resumes, then a scheduler's SIGTERM reaches both processes
