@@ -15,9 +15,10 @@ one AdamW step (cosine learning rate after a linear warm-up) on DDPM's noise-pre
 ``t ~ U{0 .. diffusion_steps - 1}`` per window (the ``squaredcos_cap_v2`` schedule,
 :mod:`jarena_agents.diffusion.schedule`), the squared error of the predicted noise. An exponential moving average
 of the weights (Diffusion Policy's warm-up, power 0.75, at most 0.9999) is what acts. Acting samples with
-``inference_steps`` deterministic DDIM steps (10 of the 100), clipping the clean estimate to [-1, 1]; the initial
-noise of arena ``i`` is drawn from ``fold_in(key, i)``, so an arena's actions depend on its own observations and
-the key, whatever the batch size. Train and eval modes act alike (the policy is a sampler either way).
+``inference_steps`` deterministic DDIM steps (10 of the 100; ``sampler: ddpm`` takes ancestral DDPM steps instead,
+as the paper's simulation results do with all 100), clipping the clean estimate to [-1, 1]; the noise of arena
+``i`` is drawn from ``fold_in(key, i)``, so an arena's actions depend on its own observations and the key, whatever
+the batch size. Train and eval modes act alike (the policy is a sampler either way).
 
 Image observations (uint8 (H, W, C)) go through one ResNet-18-like encoder per image key (GroupNorm, spatial-softmax
 keypoints: :class:`jarena_agents.diffusion.networks.ObservationEncoder`) after a ``crop`` x ``crop`` crop, random
@@ -81,7 +82,9 @@ class DiffusionConfig(DatasetSchedule):
       groups: GroupNorm groups in the U-Net (each of ``down_dims`` a multiple).
       step_embedding: width of the diffusion step's sinusoidal embedding (even).
       diffusion_steps: noise steps of the DDPM training process.
-      inference_steps: DDIM steps when acting (at most ``diffusion_steps``).
+      inference_steps: denoising steps when acting (at most ``diffusion_steps``).
+      sampler: ``"ddim"`` (deterministic DDIM steps) or ``"ddpm"`` (ancestral DDPM steps with the posterior's
+        fixed small variance, Diffusion Policy's sampler in its simulation benchmarks, with 100 steps).
       clip_sample: clip the denoised estimate to [-1, 1] (the normalised data's range) at every step.
       crop: side of the square image crops (random in training, central when acting); null keeps whole images.
       encoder_widths: channels of the image encoder's stages (ResNet-18: 64, 128, 256, 512).
@@ -111,6 +114,7 @@ class DiffusionConfig(DatasetSchedule):
     step_embedding: int = at_least(4, default=128)
     diffusion_steps: int = at_least(1, default=100)
     inference_steps: int = at_least(1, default=10)
+    sampler: str = "ddim"
     clip_sample: bool = True
     crop: int | None = at_least(1, default=84)
     encoder_widths: tuple = (64, 128, 256, 512)
@@ -128,6 +132,9 @@ class DiffusionConfig(DatasetSchedule):
     use_ema: bool = True
     ema_power: float = positive(0.75)
     ema_max_decay: float = in_unit_interval(0.9999)
+
+
+SAMPLERS = ("ddim", "ddpm")
 
 
 def check_config(cfg: DiffusionConfig) -> None:
@@ -149,6 +156,8 @@ def check_config(cfg: DiffusionConfig) -> None:
         problems.append(f"kernel must be odd (it keeps the sequence length), got {cfg.kernel}")
     if cfg.step_embedding % 2:
         problems.append(f"step_embedding must be even (sines and cosines), got {cfg.step_embedding}")
+    if cfg.sampler not in SAMPLERS:
+        problems.append(f"sampler must be one of {list(SAMPLERS)}, got {cfg.sampler!r}")
     if cfg.inference_steps > cfg.diffusion_steps:
         problems.append(f"inference_steps ({cfg.inference_steps}) must be at most diffusion_steps "
                         f"({cfg.diffusion_steps})")
@@ -316,16 +325,23 @@ def make_diffusion(config=None) -> TrainableAgent:
         i's initial noise from ``fold_in(key, i)``."""
         count = history["vector"].shape[0]
         cond = condition(params, normalizer, history)
+        shape = (cfg.horizon, action_size(spec))
         keys = jax.vmap(lambda i: jax.random.fold_in(key, i))(jnp.arange(count))
-        noise = jax.vmap(lambda k: jax.random.normal(k, (cfg.horizon, action_size(spec))))(keys)
+        if cfg.sampler == "ddpm":  # each arena: its initial noise, and its steps' noise from a key of their own
+            keys, step_keys = jnp.moveaxis(jax.vmap(jax.random.split)(keys), 1, 0)
+        noise = jax.vmap(lambda k: jax.random.normal(k, shape))(keys)
         network = unet(spec)
 
         def denoise(x, steps):
-            t, t_prev = steps
+            t, t_prev, index = steps
             epsilon = network.apply(params["unet"], x, jnp.full((count,), t), cond)
-            return schedule.ddim_step(alphas_cumprod, x, epsilon, t, t_prev, cfg.clip_sample), None
+            if cfg.sampler == "ddim":
+                return schedule.ddim_step(alphas_cumprod, x, epsilon, t, t_prev, cfg.clip_sample), None
+            drawn = jax.vmap(lambda k: jax.random.normal(jax.random.fold_in(k, index), shape))(step_keys)
+            return schedule.ddpm_step(alphas_cumprod, x, epsilon, t, t_prev, drawn, cfg.clip_sample), None
 
-        sample, _ = jax.lax.scan(denoise, noise, (jnp.asarray(timesteps), jnp.asarray(previous)))
+        steps = (jnp.asarray(timesteps), jnp.asarray(previous), jnp.arange(len(timesteps)))
+        sample, _ = jax.lax.scan(denoise, noise, steps)
         executed = sample[:, first_executed:first_executed + cfg.action_steps]
         return jnp.clip(data.from_unit(normalizer.action, executed), *bounds(spec))
 

@@ -78,6 +78,34 @@ def ddim_step(alphas_cumprod: jax.Array, sample: jax.Array, epsilon: jax.Array, 
     return jnp.sqrt(a_prev) * clean + jnp.sqrt(1.0 - a_prev) * epsilon
 
 
+def ddpm_step(alphas_cumprod: jax.Array, sample: jax.Array, epsilon: jax.Array, t: jax.Array, t_prev: jax.Array,
+              noise: jax.Array, clip: bool = True) -> jax.Array:
+    """One ancestral DDPM step (Ho et al. 2020) from ``x_t`` to ``x_{t_prev}``, the posterior's "fixed small"
+    variance, as Diffusion Policy samples (diffusers' ``DDPMScheduler``, ``variance_type: fixed_small``).
+
+    With ``a_t``, ``a_prev`` (1 for ``t_prev < 0``), ``alpha = a_t / a_prev`` and ``beta = 1 - alpha``: the clean
+    estimate ``x_0 = (x_t - sqrt(1 - a_t) eps) / sqrt(a_t)`` (clipped to [-1, 1] with ``clip``), the posterior mean
+    ``sqrt(a_prev) beta / (1 - a_t) x_0 + sqrt(alpha) (1 - a_prev) / (1 - a_t) x_t`` and, for ``t > 0``, its
+    variance ``(1 - a_prev) / (1 - a_t) beta`` (at least 1e-20) times ``noise``'s standard normal draws.
+
+    Args:
+      alphas_cumprod: float32 (T,).
+      sample, epsilon, noise: arrays of one shape.
+      t, t_prev: int scalars (``t_prev = t - T / inference steps``).
+    """
+    alphas_cumprod = jnp.asarray(alphas_cumprod)
+    a_t = alphas_cumprod[t]
+    a_prev = jnp.where(t_prev >= 0, alphas_cumprod[jnp.maximum(t_prev, 0)], 1.0)
+    alpha = a_t / a_prev
+    beta = 1.0 - alpha
+    clean = (sample - jnp.sqrt(1.0 - a_t) * epsilon) / jnp.sqrt(a_t)
+    if clip:
+        clean = jnp.clip(clean, -1.0, 1.0)
+    mean = (jnp.sqrt(a_prev) * beta / (1.0 - a_t)) * clean + (jnp.sqrt(alpha) * (1.0 - a_prev) / (1.0 - a_t)) * sample
+    variance = jnp.maximum((1.0 - a_prev) / (1.0 - a_t) * beta, 1e-20)
+    return jnp.where(t > 0, mean + jnp.sqrt(variance) * noise, mean)
+
+
 def ema_decay(update: jax.Array, power: float, max_decay: float) -> jax.Array:
     """The decay of the weights' moving average at optimiser update ``update`` (0 for the first), with Diffusion
     Policy's warm-up: ``1 - (1 + n)^-power`` for ``n = update - 1``, 0 while ``n <= 0`` (the average copies the

@@ -152,6 +152,24 @@ def test_acting_is_the_same_at_any_batch_size(trained):
     assert not np.allclose(other, alone)
 
 
+def test_ddpm_sampling_keeps_the_modes_and_any_batch_size(trained):
+    """``sampler: ddpm`` with all 100 steps (the paper's): the same trained weights still sample both modes and
+    little between them, and arena i's noise still comes from the key and i alone."""
+    agent = jarena_agents.build_agent("diffusion", dict(TINY, dataset=trained["path"], sampler="ddpm",
+                                                        inference_steps=100))
+    policy = agent.policy(trained["result"].train_state, trained["arena"].spec)
+    act, info = jax.jit(agent.act), trained["info"]
+    sampled = np.asarray(act(policy, info, jax.random.key(5))[0])[:, 0]
+    assert np.mean(sampled > 0.75 * MODE) > 0.2 and np.mean(sampled < -0.75 * MODE) > 0.2
+    assert np.mean(np.abs(sampled) < 0.5 * MODE) < 0.08
+    assert not np.allclose(sampled, trained["sampled"])  # not the DDIM samples
+    three = jax.tree_util.tree_map(lambda x: x[:3], info)
+    np.testing.assert_allclose(np.asarray(act(policy, three, jax.random.key(5))[0])[:, 0], sampled[:3], rtol=1e-5,
+                               atol=1e-5)
+    with pytest.raises(ConfigError, match=r"sampler must be one of \['ddim', 'ddpm'\], got 'euler'"):
+        jarena_agents.build_agent("diffusion", dict(TINY, sampler="euler"))
+
+
 def infos(observation: dict, step: np.ndarray, goal_dim: int) -> Info:
     """Infos of (..., B) steps holding ``observation`` and ``step``, every other field zeros."""
     zeros = np.zeros(step.shape, np.float32)

@@ -55,6 +55,39 @@ def test_one_ddim_step_and_the_visited_steps():
     np.testing.assert_allclose(last, [clean, 1.0], rtol=1e-5)
 
 
+def test_one_ddpm_step():
+    """Ancestral DDPM with the posterior's fixed small variance (diffusers' DDPMScheduler, Diffusion Policy's
+    sampler), worked from its definitions: x_t = 0.3, predicted noise 0.5, drawn noise -1.2, at t = 50."""
+    a = schedule.cosine_alphas_cumprod(100)
+    a50, a49, a40 = float(a[50]), float(a[49]), float(a[40])
+    clean = (0.3 - math.sqrt(1 - a50) * 0.5) / math.sqrt(a50)
+
+    def by_hand(a_prev, x0, drawn):
+        alpha = a50 / a_prev
+        beta = 1 - alpha
+        mean = math.sqrt(a_prev) * beta / (1 - a50) * x0 + math.sqrt(alpha) * (1 - a_prev) / (1 - a50) * 0.3
+        return mean + math.sqrt((1 - a_prev) / (1 - a50) * beta) * drawn
+
+    step = jax.jit(schedule.ddpm_step, static_argnames="clip")
+    sample, epsilon = jnp.array([0.3]), jnp.array([0.5])
+    np.testing.assert_allclose(step(a, sample, epsilon, 50, 49, jnp.array([-1.2])), [by_hand(a49, clean, -1.2)],
+                               rtol=1e-5)
+    # ten training steps in one (10 inference steps of 100): the same posterior between t = 50 and t = 40
+    np.testing.assert_allclose(step(a, sample, epsilon, 50, 40, jnp.array([-1.2])), [by_hand(a40, clean, -1.2)],
+                               rtol=1e-5)
+    # x_t = 2, noise -0.5: x_0 = 3.41 is clipped to 1 (with clip) for the mean
+    big = (2.0 + math.sqrt(1 - a50) * 0.5) / math.sqrt(a50)
+    hand_clipped = (math.sqrt(a49) * (1 - a50 / a49) / (1 - a50) * 1.0
+                    + math.sqrt(a50 / a49) * (1 - a49) / (1 - a50) * 2.0)
+    np.testing.assert_allclose(step(a, jnp.array([2.0]), jnp.array([-0.5]), 50, 49, jnp.zeros(1)), [hand_clipped],
+                               rtol=1e-5)
+    assert big > 1.0
+    # the last step (t = 0, to the clean data) adds no noise: it lands on the posterior mean, the clean estimate
+    a0 = float(a[0])
+    x0 = (0.3 - math.sqrt(1 - a0) * 0.5) / math.sqrt(a0)
+    np.testing.assert_allclose(step(a, sample, epsilon, 0, -1, jnp.array([5.0])), [x0], rtol=1e-5)
+
+
 def test_forward_noise_and_ema_warm_up():
     a = schedule.cosine_alphas_cumprod(100)
 
