@@ -82,6 +82,8 @@ def _agent_config(args, arena) -> dict:
         config["arena"] = args.arena
     checkpoint = getattr(args, "checkpoint", None)
     saved = Path(checkpoint or "", "config.json")
+    if checkpoint and not saved.is_file() and Path(checkpoint).name.startswith("seed_"):
+        saved = Path(checkpoint).parent / "config.json"  # a seed of a --seeds run: the run's config
     if checkpoint and saved.is_file():
         config = json.loads(saved.read_text()).get("config") or config  # the config the run trained with
     config.update(dict(args.set or []))
@@ -442,7 +444,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", type=parse_override, metavar="KEY=VALUE",
                    help="override a config key (repeatable)")
     p.add_argument("--checkpoint", default=None, metavar="RUN_DIR",
-                   help="evaluate a training run's policy (see --select)")
+                   help="evaluate a training run's policy (see --select); RUN_DIR/seed_<s> for one seed of a "
+                        "--seeds run")
     p.add_argument("--select", default="best", type=select_arg, metavar="best|last|best:METRIC",
                    help="with --checkpoint: the run's best validated policy (what `jarena train` evaluated, "
                         "whichever rule kept it) or its latest checkpoint")

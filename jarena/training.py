@@ -849,6 +849,8 @@ def restore_policy(agent, arena: Arena, run_dir: str | os.PathLike, select: str 
     if getattr(agent, "init_training", None) is None:
         raise ValueError(f"agent {agent.name!r} is not trainable and has no checkpoints")
     path = Path(run_dir)
+    if path.name.startswith("seed_") and (path.parent / "checkpoints").is_dir():
+        return _restore_seed_policy(agent, arena, path, rule)
     folder = path / "checkpoints" if (path / "checkpoints").is_dir() else path
     if rule.replaces is not None and (path / BEST_POLICY_DIR).is_dir():
         folder = path / BEST_POLICY_DIR
@@ -873,3 +875,41 @@ def restore_policy(agent, arena: Arena, run_dir: str | os.PathLike, select: str 
         return state  # made for the trained-on arena's spec, which equals arena's (checked above)
     print(f"restored checkpoint {checkpointer.latest_step()} from {folder}")
     return agent.policy(state, arena.spec, True)
+
+
+def _restore_seed_policy(agent, arena: Arena, seed_dir: Path, rule: Selection):
+    """One seed's policy from the checkpoint of a :func:`train_seeds` run (``seed_dir``: its ``RUN/seed_<s>``):
+    the one kept by the run's rule (``best``), or that seed's latest training state's (``last``, and when none
+    was kept)."""
+    run_dir = seed_dir.parent
+    checkpointer = Checkpointer(run_dir / "checkpoints")
+    try:
+        if checkpointer.latest_step() is None:
+            raise FileNotFoundError(f"no checkpoint found in {run_dir / 'checkpoints'}")
+        seeds = checkpointer.metadata().get("seeds")
+        seed = seed_dir.name.removeprefix("seed_")
+        if seeds is None or not seed.isdigit() or int(seed) not in seeds:
+            raise ValueError(f"{seed_dir}: the run in {run_dir} trained seeds {seeds}; give one of "
+                             f"{[str(run_dir / f'seed_{s}') for s in seeds or []]}")
+        index = seeds.index(int(seed))
+        trained_on = trained_arena(run_dir, arena)
+        keys = jax.random.wrap_key_data(np.stack([np.asarray(jax.random.key_data(jax.random.key(s))) for s in seeds]))
+        train = jax.jit(jax.vmap(lambda key: agent.init_training(key, trained_on)))(keys)
+        template = {"train": train, "kept": jax.jit(jax.vmap(lambda one: agent.policy(one, trained_on.spec, True)))(
+            train)}
+        try:
+            state, meta = checkpointer.restore(template)
+        except Exception as e:  # orbax raises several types for a mismatched or damaged checkpoint
+            raise ValueError(f"checkpoint in {run_dir / 'checkpoints'} does not fit agent {agent.name!r} with config "
+                             f"{agent.config} on {arena.name!r}: {e}") from e
+        step = checkpointer.latest_step()
+    finally:
+        checkpointer.close()
+    row = meta["kept_rows"][index]
+    pick = lambda tree: jax.tree_util.tree_map(lambda x: x[index], tree)
+    if rule.replaces is not None and row is not None:
+        print(f"restored seed {seed}'s {rule.name} validated policy (step {int(row['env_steps'])}, validation return "
+              f"{row['return_mean']:.1f}) from {run_dir / 'checkpoints' / str(step)}")
+        return pick(state["kept"])
+    print(f"restored seed {seed}'s training state of checkpoint {step} from {run_dir / 'checkpoints'}")
+    return agent.policy(pick(state["train"]), arena.spec, True)

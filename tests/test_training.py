@@ -301,6 +301,12 @@ def test_seeds_resume_from_their_checkpoint(cartpole, tmp_path, capsys):
     assert all(e.selected["update"] == 6 and e.summary()["return_mean"] == 500.0 for e in finished.evaluations)
     with open(again / "seed_1" / "validation.csv") as f:
         assert [float(r["update"]) for r in csv.DictReader(f)] == list(range(2, 21, 2))
+    # one seed's policy from the run's checkpoint, as `jarena evaluate --checkpoint RUN/seed_<s>` takes it
+    best = jarena.training.restore_policy(agent, cartpole, tmp_path / "seed_1")
+    assert bool(best.good)  # chunk 6's, kept
+    assert not bool(jarena.training.restore_policy(agent, cartpole, tmp_path / "seed_1", select="last").good)
+    with pytest.raises(ValueError, match="trained seeds \\[0, 1\\]; give one of"):
+        jarena.training.restore_policy(agent, cartpole, tmp_path / "seed_7")
     with pytest.raises(ValueError, match=r"holds a run of seeds \[0, 1\], not of seeds \[0, 2\]"):
         jarena.training.train_seeds(agent, cartpole, [0, 2], progress=False, run_dir=tmp_path)
     with pytest.raises(ValueError, match=r"holds a run of seeds \[0, 1\] \(jarena train --seeds 2\), not of one"):
@@ -325,6 +331,12 @@ def test_the_command_line_trains_several_seeds_at_once(tmp_path, capsys):
     for seed in (5, 6):  # validated 10 times, as a single run by default
         with open(tmp_path / f"seed_{seed}" / "validation.csv") as f:
             assert len(list(csv.DictReader(f))) >= 2
+    # one seed's evaluated policy, evaluated again from the run's checkpoint: the same episodes' return
+    assert main(["evaluate", "ppo", CARTPOLE, "--checkpoint", str(tmp_path / "seed_6"), "--json",
+                 str(tmp_path / "again.json")]) == 0
+    again = json.loads((tmp_path / "again.json").read_text())["summary"]["return_mean"]
+    trained = json.loads((tmp_path / "seed_6" / "evaluation.json").read_text())["summary"]["return_mean"]
+    assert again == pytest.approx(trained, rel=1e-6)
 
 
 def test_a_final_evaluation_line_outside_the_plotted_returns_widens_the_range_to_show_it():
