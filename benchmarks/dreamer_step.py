@@ -25,6 +25,7 @@ import argparse
 import json
 import os
 import statistics
+import sys
 import time
 
 import jax
@@ -82,6 +83,7 @@ def main() -> None:
                           "seconds": round(time.perf_counter() - start, 1)}), flush=True)
         return
     fill_s = time.perf_counter() - start
+    print(f"filled the buffer (and compiled) in {fill_s:.1f} s", file=sys.stderr, flush=True)  # a call cut short
     if args.compile_only:  # the timed chunk's program too, so that a later run finds both in the compilation cache
         chunk.lower(state).compile()
         print(json.dumps({**variant, "compiled": True, "fill_and_compile_s": round(fill_s, 1),
@@ -91,6 +93,7 @@ def main() -> None:
     state, _ = chunk(state)
     jax.block_until_ready(state)
     first_s = time.perf_counter() - start
+    print(f"first chunk of {args.updates} updates (compiled) in {first_s:.1f} s", file=sys.stderr, flush=True)
     times = []
     for _ in range(args.repeats):
         start = time.perf_counter()
