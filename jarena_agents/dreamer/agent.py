@@ -2,8 +2,9 @@
 
 Collection and the world model are as ``planet``'s (:mod:`jarena_agents.world_model.online`). Each gradient
 step trains the model on a window batch, then imagines ``imagination_horizon`` steps from every posterior
-state of that batch (gradients stopped) with the actor, and trains the actor by REINFORCE on normalised
-lambda-returns with an entropy bonus and the critic (two-hot) on the returns and on its slow copy
+state of that batch (their gradients stopped) with the actor, and trains the actor on normalised lambda-returns
+with an entropy bonus (by REINFORCE, or through the imagination: below) and the critic (two-hot) on the returns and
+on its slow copy
 (:mod:`jarena_agents.dreamer.losses`). The actor is DreamerV3's:
 
 - Box actions: a bounded normal: mean ``tanh``, standard deviation in [0.1, 1], samples clipped to [-1, 1] and
@@ -305,8 +306,8 @@ def make_dreamer(config=None) -> TrainableAgent:
             return jax.tree_util.tree_map(lambda xs, x: jnp.concatenate([xs, x[None]], 0), latents, last), raws
 
         def score(trajectory: Latent):
-            """Rewards, continuation probabilities and values (H + 1, N) of ``trajectory``, its lambda-returns
-            (H, N) and weights (H, N)."""
+            """The critic's values (H + 1, N) of ``trajectory``, and its lambda-returns (H, N) and weights (H, N)
+            from the model's rewards and continuation probabilities."""
             rewards = wm.predict_reward(model, learner.model, trajectory)
             continues = wm.continue_probability(model, learner.model, trajectory)
             values = distributions.two_hot_mean(critic().apply(learner.critic, trajectory.features()), model.centres)
