@@ -68,6 +68,7 @@ def _agent_config(args, arena) -> dict:
     """
     import jarena
     import jarena_agents
+    from jarena.training import seeds_run_of
 
     models_arena = args.agent in jarena_agents.list_agents("arena_model")  # it simulates the arena it acts in
     try:
@@ -81,9 +82,8 @@ def _agent_config(args, arena) -> dict:
     if models_arena:
         config["arena"] = args.arena
     checkpoint = getattr(args, "checkpoint", None)
-    saved = Path(checkpoint or "", "config.json")
-    if checkpoint and not saved.is_file() and Path(checkpoint).name.startswith("seed_"):
-        saved = Path(checkpoint).parent / "config.json"  # a seed of a --seeds run: the run's config
+    run = checkpoint and (seeds_run_of(checkpoint) or checkpoint)  # a seed of a --seeds run: the run's config
+    saved = Path(run or "", "config.json")
     if checkpoint and saved.is_file():
         config = json.loads(saved.read_text()).get("config") or config  # the config the run trained with
     config.update(dict(args.set or []))

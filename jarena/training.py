@@ -218,11 +218,7 @@ def train_and_evaluate(agent, arena: Arena, key: jax.Array, *, total_steps: int 
     first_chunk = 0
     if checkpointer is not None and checkpointer.latest_step() is not None:
         first_chunk = checkpointer.latest_step()
-        held = checkpointer.metadata(first_chunk).get("seeds")
-        if held is not None:
-            checkpointer.close()
-            raise ValueError(f"{run_path} holds a run of seeds {held} (jarena train --seeds {len(held)}), not of "
-                             f"one: resume it as it was started, or give another run directory")
+        _check_same_kind(checkpointer, first_chunk, run_path, None)
         restored, meta = checkpointer.restore(train_state, first_chunk)
         if arena.dynamics.on_host:  # a checkpoint holds handles on the last process's simulators, not their state
             restored = fresh_episodes(restored, train_state)
@@ -387,12 +383,10 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
         (run_path / "config.json").write_text(json.dumps(
             _run_config(agent, arena, eval_arena, total_steps=total_steps, seeds=seeds, select=select), indent=2,
             default=str))
-    keys = jax.random.wrap_key_data(np.stack([np.asarray(jax.random.key_data(jax.random.key(s))) for s in seeds]))
-    train_state = jax.jit(jax.vmap(lambda key: agent.init_training(key, arena)))(keys)
+    train_state = _init_seeds(agent, arena, seeds)
     chunk = jax.jit(lambda ts, n: jax.vmap(lambda one: agent.train(one, arena, n))(ts), static_argnums=1,
                     donate_argnums=0)
-    # every seed's acting policy, stacked: only what the policies read is computed (no copy of a replay buffer)
-    policies = jax.jit(jax.vmap(lambda one: agent.policy(one, eval_arena.spec, True)))
+    policies = _stacked_policies(agent, eval_arena.spec)
     histories: list[list[dict[str, float]]] = [[] for _ in seeds]
     validated: list[list[dict[str, float]]] = [[] for _ in seeds]
     kept: list[tuple[Any, dict] | None] = [None for _ in seeds]  # per seed: (host copy of its policy, its row)
@@ -401,17 +395,12 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
     first_chunk = 0
     if checkpointer is not None and checkpointer.latest_step() is not None:
         first_chunk = checkpointer.latest_step()
-        held = checkpointer.metadata(first_chunk).get("seeds")
-        if held != seeds:
-            checkpointer.close()
-            what = f"a run of seeds {held}" if held is not None else "a run of one seed (no --seeds)"
-            raise ValueError(f"{run_path} holds {what}, not of seeds {seeds}: resume it as it was started, or give "
-                             f"another run directory")
+        _check_same_kind(checkpointer, first_chunk, run_path, seeds)
         template = {"train": train_state, "kept": policies(train_state)}
         restored, meta = checkpointer.restore(template, first_chunk)
         train_state, histories, validated = restored["train"], meta["histories"], meta["validations"]
         kept_policies = jax.device_get(restored["kept"])
-        kept = [None if row is None else (jax.tree_util.tree_map(lambda x, i=i: x[i], kept_policies), row)
+        kept = [None if row is None else (_seed_slice(kept_policies, i), row)
                 for i, row in enumerate(meta["kept_rows"])]
         _say(True, f"resuming from step {first_chunk * chunk_updates * steps_per_update} of "
                    f"{num_updates * steps_per_update} (checkpoint {checkpointer.directory / str(first_chunk)})")
@@ -421,12 +410,14 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
     done = first_chunk * chunk_updates
     start = time.perf_counter() - (histories[0][-1]["seconds"] if first_chunk else 0.0)
 
-    def save(chunks: int) -> None:
+    def kept_or_current() -> Any:
+        """Each seed's kept policy, or its current one where none was kept: host copies stacked (S, ...)."""
         current = jax.device_get(policies(train_state)) if not all(kept) else None
-        kept_policies = jax.tree_util.tree_map(lambda *xs: np.stack(xs), *[
-            k[0] if k is not None else jax.tree_util.tree_map(lambda x, i=i: x[i], current)
-            for i, k in enumerate(kept)])
-        checkpointer.save(chunks, {"train": train_state, "kept": kept_policies},
+        return jax.tree_util.tree_map(lambda *xs: np.stack(xs), *[
+            k[0] if k is not None else _seed_slice(current, i) for i, k in enumerate(kept)])
+
+    def save(chunks: int) -> None:
+        checkpointer.save(chunks, {"train": train_state, "kept": kept_or_current()},
                           {"seeds": seeds, "histories": histories, "validations": validated,
                            "kept_rows": [None if k is None else k[1] for k in kept]})
 
@@ -449,7 +440,7 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
                 for i, (rows, result) in enumerate(zip(validated, results, strict=True)):
                     rows.append({"update": done, "env_steps": done * steps_per_update, **result.summary()})
                     if _prefers(rule, rows[-1], None if kept[i] is None else kept[i][1]):
-                        kept[i] = (jax.device_get(jax.tree_util.tree_map(lambda x, i=i: x[i], stacked)), rows[-1])
+                        kept[i] = (jax.device_get(_seed_slice(stacked, i)), rows[-1])
                 mean = float(np.mean([rows[-1]["return_mean"] for rows in validated]))
                 bar.note(f"validation return {mean:.1f} at step {done * steps_per_update} (mean over the seeds)")
             if run_path is not None:  # the curves so far survive a run that is stopped or killed
@@ -462,12 +453,9 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
         bar.close()
         if checkpointer is not None:
             checkpointer.close()
-    final = jax.device_get(policies(train_state)) if not all(kept) else None
-    chosen = [k[0] if k is not None else jax.tree_util.tree_map(lambda x, i=i: x[i], final)
-              for i, k in enumerate(kept)]
+    stacked = kept_or_current()
     selected = [_kept_row(rule, k[1]) if k is not None else _last_row(rule, h[-1] if h else None, v[-1] if v else None)
                 for k, h, v in zip(kept, histories, validated, strict=True)]
-    stacked = jax.tree_util.tree_map(lambda *xs: np.stack(xs), *chosen)
     evaluations = [dataclasses.replace(e, selected=chosen_row) for e, chosen_row in
                    zip(evaluate_policies(agent, eval_arena, stacked, jax.random.key(0)), selected, strict=True)]
     if run_path is not None:
@@ -482,6 +470,38 @@ def train_seeds(agent, arena: Arena, seeds, *, total_steps: int | None = None, c
         rows = [{"seed": float(seed), **e.summary()} for seed, e in zip(seeds, evaluations, strict=True)]
         _write_csv(run_path / "seeds.csv", rows)
     return result
+
+
+def _init_seeds(agent, arena: Arena, seeds: list[int]):
+    """The training states of ``seeds`` (seed ``s``: ``jax.random.key(s)``), stacked on a leading axis (S, ...)."""
+    keys = jax.random.wrap_key_data(np.stack([np.asarray(jax.random.key_data(jax.random.key(s))) for s in seeds]))
+    return jax.jit(jax.vmap(lambda key: agent.init_training(key, arena)))(keys)
+
+
+def _stacked_policies(agent, spec):
+    """Jitted: stacked training states (S, ...) to every seed's deterministic acting policy, stacked; only what the
+    policies read is computed (no copy of a replay buffer)."""
+    return jax.jit(jax.vmap(lambda one: agent.policy(one, spec, True)))
+
+
+def _seed_slice(tree, index: int):
+    """Seed ``index``'s part of a tree stacked over seeds (leaves (S, ...))."""
+    return jax.tree_util.tree_map(lambda x: x[index], tree)
+
+
+def _check_same_kind(checkpointer: Checkpointer, step: int, run_path: Path, seeds: list[int] | None) -> None:
+    """Raises ``ValueError`` unless the checkpoint at ``step`` is a run of these ``seeds`` (:func:`train_seeds`),
+    or of one seed (``None``: :func:`train_and_evaluate`), before its state is read; closes ``checkpointer`` then."""
+    held = checkpointer.metadata(step).get("seeds")
+    if held == seeds:
+        return
+    checkpointer.close()
+    if seeds is None:
+        raise ValueError(f"{run_path} holds a run of seeds {held} (jarena train --seeds {len(held)}), not of one: "
+                         f"resume it as it was started, or give another run directory")
+    what = f"a run of seeds {held}" if held is not None else "a run of one seed (no --seeds)"
+    raise ValueError(f"{run_path} holds {what}, not of seeds {seeds}: resume it as it was started, or give another "
+                     f"run directory")
 
 
 def _mean_row(rows: list[dict]) -> dict:
@@ -841,6 +861,16 @@ def trained_arena(run_dir: Path, arena: Arena) -> Arena:
     return trained_on
 
 
+def seeds_run_of(path: str | os.PathLike) -> Path | None:
+    """The :func:`train_seeds` run directory that ``path`` is a seed folder of (``RUN/seed_<s>``, whose run holds
+    the config and the checkpoints), else ``None``."""
+    path = Path(path)
+    saved = path.parent / "config.json"
+    if not path.name.startswith("seed_") or (path / "config.json").is_file() or not saved.is_file():
+        return None
+    return path.parent if "seeds" in json.loads(saved.read_text()) else None
+
+
 def restore_policy(agent, arena: Arena, run_dir: str | os.PathLike, select: str = "best"):
     """The deterministic policy of a training run directory: the policy ``train_and_evaluate`` selected
     (``best``: the best validated one, kept in ``best_policy/``) or the latest checkpoint's (``last``, and
@@ -849,7 +879,7 @@ def restore_policy(agent, arena: Arena, run_dir: str | os.PathLike, select: str 
     if getattr(agent, "init_training", None) is None:
         raise ValueError(f"agent {agent.name!r} is not trainable and has no checkpoints")
     path = Path(run_dir)
-    if path.name.startswith("seed_") and (path.parent / "checkpoints").is_dir():
+    if seeds_run_of(path) is not None:
         return _restore_seed_policy(agent, arena, path, rule)
     folder = path / "checkpoints" if (path / "checkpoints").is_dir() else path
     if rule.replaces is not None and (path / BEST_POLICY_DIR).is_dir():
@@ -893,10 +923,8 @@ def _restore_seed_policy(agent, arena: Arena, seed_dir: Path, rule: Selection):
                              f"{[str(run_dir / f'seed_{s}') for s in seeds or []]}")
         index = seeds.index(int(seed))
         trained_on = trained_arena(run_dir, arena)
-        keys = jax.random.wrap_key_data(np.stack([np.asarray(jax.random.key_data(jax.random.key(s))) for s in seeds]))
-        train = jax.jit(jax.vmap(lambda key: agent.init_training(key, trained_on)))(keys)
-        template = {"train": train, "kept": jax.jit(jax.vmap(lambda one: agent.policy(one, trained_on.spec, True)))(
-            train)}
+        train = _init_seeds(agent, trained_on, seeds)
+        template = {"train": train, "kept": _stacked_policies(agent, trained_on.spec)(train)}
         try:
             state, meta = checkpointer.restore(template)
         except Exception as e:  # orbax raises several types for a mismatched or damaged checkpoint
@@ -906,10 +934,9 @@ def _restore_seed_policy(agent, arena: Arena, seed_dir: Path, rule: Selection):
     finally:
         checkpointer.close()
     row = meta["kept_rows"][index]
-    pick = lambda tree: jax.tree_util.tree_map(lambda x: x[index], tree)
     if rule.replaces is not None and row is not None:
         print(f"restored seed {seed}'s {rule.name} validated policy (step {int(row['env_steps'])}, validation return "
               f"{row['return_mean']:.1f}) from {run_dir / 'checkpoints' / str(step)}")
-        return pick(state["kept"])
+        return _seed_slice(state["kept"], index)
     print(f"restored seed {seed}'s training state of checkpoint {step} from {run_dir / 'checkpoints'}")
-    return agent.policy(pick(state["train"]), arena.spec, True)
+    return agent.policy(_seed_slice(state["train"], index), arena.spec, True)
