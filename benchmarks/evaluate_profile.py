@@ -8,7 +8,10 @@ For each device count (weak scaling: ``--arenas`` per device) it times, best of 
 - ``loop``: the compiled episode loop alone (inputs already on the devices, outputs left there);
 - ``loop, block K``: the same with the "is every episode done?" check after blocks of K steps, for each K of
   ``--blocks`` (the library picks the block with ``steps_per_check``);
-- ``fetch``: copying the loop's per-episode results to the host.
+- ``stages``: one ``evaluate`` call cut at its stages, each timed on fresh outputs (best total of ``--repeats``):
+  ``prepare`` (argument checks, the agent's state, the inputs sent to the devices), ``loop`` (the compiled call,
+  waited for), ``fetch`` (the per-episode results copied to the host) and ``result`` (the host arrays made an
+  ``EvalResult``).
 
     python benchmarks/evaluate_profile.py --arena "classic|domain:cartpole" --arenas 1048576 --devices 1,2,4
 
@@ -62,6 +65,45 @@ def loop_call(agent, arena, num: int, steps: int, devices: int):
         return run
 
 
+def evaluate_stages(agent, arena, num: int, steps: int, devices: int, repeats: int) -> dict:
+    """Seconds of each stage of one :func:`jarena.evaluate` call (the call with the fastest total of ``repeats``
+    after a warm-up): ``prepare``, ``loop``, ``fetch`` and ``result`` (see the module docstring)."""
+    marks = {}
+    compiled, fetch = evaluate_module._compiled_episodes, distributed.fetch
+
+    def timed_compiled(*args, **kwargs):
+        fn = compiled(*args, **kwargs)
+
+        def call(*inputs):
+            marks["loop_start"] = time.perf_counter()
+            out = jax.block_until_ready(fn(*inputs))
+            marks["loop_end"] = time.perf_counter()
+            return out
+        return call
+
+    def timed_fetch(tree, name="fetch"):
+        start = time.perf_counter()
+        out = fetch(tree, name)
+        if name.endswith("episodes"):  # the per-episode results (not the agent state's copy in prepare)
+            marks["fetch"] = (start, time.perf_counter())
+        return out
+
+    evaluate_module._compiled_episodes, distributed.fetch = timed_compiled, timed_fetch
+    try:
+        rows = []
+        episodes = np.arange(num)
+        for _ in range(repeats + 1):
+            t0 = time.perf_counter()
+            jarena.evaluate(agent, arena, jax.random.key(1), episodes=episodes, max_steps=steps, devices=devices)
+            t1 = time.perf_counter()
+            rows.append({"prepare": marks["loop_start"] - t0, "loop": marks["loop_end"] - marks["loop_start"],
+                         "fetch": marks["fetch"][1] - marks["fetch"][0], "result": t1 - marks["fetch"][1],
+                         "total": t1 - t0})
+    finally:
+        evaluate_module._compiled_episodes, distributed.fetch = compiled, fetch
+    return min(rows[1:], key=lambda row: row["total"])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--arena", default="classic|domain:cartpole")
@@ -85,14 +127,13 @@ def main() -> None:
             agent, arena, jax.random.key(1), n, args.steps, record=False, devices=d).info.reward), args.repeats)
         row["evaluate_s"] = best_of(lambda: jarena.evaluate(agent, arena, jax.random.key(1), episodes=np.arange(n),
                                                             max_steps=args.steps, devices=d), args.repeats)
+        stages = evaluate_stages(agent, arena, n, args.steps, d, args.repeats)
+        row.update({f"stage_{k}_s": v for k, v in stages.items() if k != "total"})
         for block in blocks:
             evaluate_module.steps_per_check = lambda max_steps, devices, b=block: b
             evaluate_module._compiled_episodes.cache_clear()
             run = loop_call(agent, arena, n, args.steps, d)
             row[f"loop_block{block}_s"] = best_of(run, args.repeats)
-            if block == blocks[0]:
-                out = run()
-                row["fetch_s"] = best_of(lambda: distributed.fetch(out, "profile"), args.repeats)
         evaluate_module.steps_per_check = library_block
         evaluate_module._compiled_episodes.cache_clear()
         results[d] = row
@@ -102,7 +143,7 @@ def main() -> None:
     print("weak scaling (work per second against the first device count's):")
     for d, row in results.items():
         print(f"{d} device(s): " + ", ".join(f"{k[:-2]} {base[k] * d / counts[0] / v:.2f}x" for k, v in row.items()
-                                             if k.endswith("_s") and k != "fetch_s"))
+                                             if k.endswith("_s") and not k.startswith("stage_")))
     print(json.dumps({"results": results, "environment": environment(arena=args.arena,
                                                                       devices=len(jax.local_devices()))}, indent=2))
 

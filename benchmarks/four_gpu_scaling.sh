@@ -16,13 +16,16 @@ job() {
   echo "== $name $(date +%T)" >> "$R/progress.log"; local s=$(date +%s)
   "$@" > "$R/$name.log" 2>&1; echo "rc $? $(( $(date +%s) - s )) s" >> "$R/$name.log"; touch "$R/$name.done"
 }
+# not yet measured on four GPUs (2026-11-29), then the rest again
+job ppo_walker_strong python multi_device_scaling.py --arena "$W" --arenas 8192 --devices 1,4 --scaling strong --measure none --ppo-steps 8000000 --seeds 0,1,2
 job evaluate_profile python evaluate_profile.py --arena "classic|domain:cartpole" --arenas 1048576 --devices 1,2,4
+job ppo_ant_weak_mb8 python multi_device_scaling.py --arena "$A" --arenas 4096 --devices 1,4 --scaling weak --measure none --ppo-steps 12000000 --ppo-set minibatches=8
+job ppo_ant_strong_262k python multi_device_scaling.py --arena "$A" --arenas 262144 --devices 1,4 --scaling strong --measure none --ppo-steps 64000000
+job ppo_walker_weak python multi_device_scaling.py --arena "$W" --arenas 2048 --devices 1,2,4 --scaling weak --measure none --ppo-steps 12000000
+job ppo_walker_strong_2 python multi_device_scaling.py --arena "$W" --arenas 8192 --devices 2 --scaling strong --measure none --ppo-steps 8000000
 job ppo_ant_weak python multi_device_scaling.py --arena "$A" --arenas 4096 --devices 1,2,4 --scaling weak --measure none --ppo-steps 12000000
 job ppo_ant_strong python multi_device_scaling.py --arena "$A" --arenas 65536 --devices 1,4 --scaling strong --measure none --ppo-steps 16000000 --seeds 0,1,2
-job ppo_walker_weak python multi_device_scaling.py --arena "$W" --arenas 2048 --devices 1,2,4 --scaling weak --measure none --ppo-steps 6000000
-job ppo_walker_strong python multi_device_scaling.py --arena "$W" --arenas 8192 --devices 1,4 --scaling strong --measure none --ppo-steps 6000000 --seeds 0,1,2
 job rollout_cartpole python multi_device_scaling.py --arena "classic|domain:cartpole" --arenas 1048576 --devices 1,2,4 --repeats 3
 job ppo_ant_strong_2 python multi_device_scaling.py --arena "$A" --arenas 65536 --devices 2 --scaling strong --measure none --ppo-steps 16000000
-job ppo_walker_strong_2 python multi_device_scaling.py --arena "$W" --arenas 8192 --devices 2 --scaling strong --measure none --ppo-steps 6000000
 job rollout_walker python multi_device_scaling.py --arena "dmc|domain:walker,task:walk" --arenas 8192 --devices 1,2,4 --rollout-steps 25 --repeats 1
 echo "ALL DONE $(date +%T)" >> "$R/progress.log"
