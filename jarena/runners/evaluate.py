@@ -79,7 +79,7 @@ def _compiled_episodes(agent: Agent, arena: Arena, num: int, max_steps: int, par
         # the per-episode results stay split over the devices: each copies its own share to the host (a
         # replicated result would be gathered onto every device and copied out of one)
         out = constrain({"returns": ret, "lengths": length, "successes": info.success, "metrics": info.metrics,
-                         "done": done, "faults": fault})
+                         "faults": fault})
         if filmed:  # whole on every device, so that each process holds a copy (see run_episodes)
             out["physics"] = distributed.replicate(film)
         return out
