@@ -201,27 +201,38 @@ def replicated(mesh: Mesh) -> NamedSharding:
     return NamedSharding(mesh, PartitionSpec())
 
 
+PARAMETERS = "params"
+"""The dict key under which network parameters live (Flax's collection): :func:`batch_shardings` never splits them."""
+
+
 def batch_shardings(tree: PyTree, mesh: Mesh, batch_size: int | None) -> PyTree:
     """Shardings for ``tree`` (arrays or ``jax.ShapeDtypeStruct``s): leaves whose leading axis is the arena
-    batch (``batch_size``) are split along ``"data"``, all others replicated.
+    batch (``batch_size``) are split along ``"data"``, all others replicated, and so are network parameters
+    whatever their shape: every leaf under a ``"params"`` key (Flax's parameter collection, and what mirrors it:
+    optimiser moments, target networks, EMA weights).
 
     Which leaves are split changes only speed, never results (the partitioner keeps the program's
-    meaning); this rule splits what grows with the arena count.
+    meaning); this rule splits what grows with the arena count. Without the parameter exception, a layer as wide
+    as the arena count (256 arenas, 256-unit layers) was split over the devices and gathered whole again in
+    every gradient step: 30 all-gathers per step in a PPO update on 4 devices.
 
     Raises:
       ValueError: ``batch_size`` not divisible by the mesh's devices.
     """
-    count = mesh.devices.size
+    count = mesh.size  # a Mesh, or an AbstractMesh (shardings planned without devices)
     if batch_size is not None and batch_size % count:
         raise ValueError(f"{batch_size} arenas cannot be split evenly over {count} devices; choose num_arenas "
                          f"divisible by {count} or other devices")
     split, whole = NamedSharding(mesh, PartitionSpec(AXIS)), replicated(mesh)
 
-    def rule(x):
+    def rule(path, x):
         shape = getattr(x, "shape", ())
-        return split if batch_size is not None and count > 1 and len(shape) >= 1 and shape[0] == batch_size else whole
+        if batch_size is None or count < 2 or len(shape) < 1 or shape[0] != batch_size:
+            return whole
+        network = any(isinstance(k, jax.tree_util.DictKey) and k.key == PARAMETERS for k in path)
+        return whole if network else split
 
-    return jax.tree_util.tree_map(rule, tree)
+    return jax.tree_util.tree_map_with_path(rule, tree)
 
 
 def traced_mesh():

@@ -9,7 +9,6 @@ import socket
 import subprocess
 import sys
 from pathlib import Path
-from types import SimpleNamespace
 
 import jax
 import numpy as np
@@ -410,7 +409,27 @@ def test_batch_shardings_split_the_arena_axis_and_replicate_the_rest():
     assert shardings["arenas"].spec == expected
 
 
+def test_network_parameters_as_wide_as_the_arena_count_stay_whole():
+    """PPO on 8 arenas with 8-unit layers: the arenas' state is split, every parameter and optimiser moment (under
+    Flax's "params" key) is replicated although its leading axis is 8 (split, each gradient step gathered them)."""
+    import jarena
+    import jarena_agents
+
+    mesh = jax.sharding.AbstractMesh((4,), (distributed.AXIS,))  # the layout of 4 devices, planned without them
+    arena = jarena.build_arena("classic|domain:cartpole")
+    agent = jarena_agents.build_agent("ppo", {"num_arenas": 8, "hidden": [8, 8], "minibatches": 1})
+    shapes = jax.eval_shape(lambda key: agent.init_training(key, arena), jax.random.key(0))
+    shardings = distributed.batch_shardings(shapes, mesh, 8)
+    whole, split = jax.sharding.PartitionSpec(), jax.sharding.PartitionSpec("data")
+    rows = [(jax.tree_util.keystr(path), x.shape, sharding.spec) for (path, x), sharding in
+            zip(jax.tree_util.tree_leaves_with_path(shapes), jax.tree_util.tree_leaves(shardings), strict=True)]
+    wide = [(p, spec) for p, shape, spec in rows if "['params']" in p and shape[:1] == (8,)]
+    assert len(wide) >= 12 and all(spec == whole for _, spec in wide)  # weights, biases, Adam's mu and nu
+    arenas = [spec for p, shape, spec in rows if p.startswith(".arena_state") and shape[:1] == (8,)]
+    assert arenas and all(spec == split for spec in arenas)
+
+
 def test_an_arena_count_that_does_not_split_evenly_is_refused():
-    three_devices = SimpleNamespace(devices=SimpleNamespace(size=3))  # the check reads only the device count
+    three_devices = jax.sharding.AbstractMesh((3,), (distributed.AXIS,))
     with pytest.raises(ValueError, match="8 arenas cannot be split evenly over 3 devices"):
         distributed.batch_shardings({"x": np.zeros(8)}, three_devices, 8)
