@@ -47,15 +47,13 @@ def demonstrations(count: int = 20) -> dict:
 def update_maker(config: dict, correlate):
     """A maker for :func:`time_interleaved`: one training update with ``correlate`` as the transport's."""
     def make():
-        with mock.patch.object(networks, "correlate", correlate):
-            cfg = transporter_agent.make_config(transporter_agent.TransporterConfig, config, agent="transporter")
-            model = transporter_agent.build_model(cfg)
-            state = model.start(jax.random.key(0), demonstrations())
+        cfg = transporter_agent.make_config(transporter_agent.TransporterConfig, config, agent="transporter")
+        model = transporter_agent.build_model(cfg)
 
-            def run(ts):
-                with mock.patch.object(networks, "correlate", correlate):
-                    return model.update(ts)[0]
-            return run, state, 1
+        def run(ts):  # the correlation is looked up when the update is traced
+            with mock.patch.object(networks, "correlate", correlate):
+                return model.update(ts)[0]
+        return run, model.start(jax.random.key(0), demonstrations()), 1
     return make
 
 

@@ -113,16 +113,16 @@ def correlate(scene: jax.Array, kernels: jax.Array) -> jax.Array:
 
     Computed through 2-D FFTs of size (Hs, Ws): the product of the scene's spectrum and each flipped kernel's is
     their circular convolution, which equals the linear one on the (Hs - k + 1, Ws - k + 1) outputs kept. Ravens'
-    36 kernels of 65 x 65 x 3 over a 384 x 224 scene are 47 GFLOP as a direct convolution, forward only; the same
-    values (to float32 rounding) through FFTs took the transport's correlation from 3.2 s to 0.13 s forward and
-    backward, and a whole update of the paper's networks from 10.6 s to 6.5 s, on 2 CPU cores
-    (``tests/agents/transporter/test_networks.py`` checks it against the direct sum and its gradients)."""
+    36 kernels of 65 x 65 x 3 over a 384 x 224 scene are 47 GFLOP as a direct convolution, forward only; through
+    FFTs the same values (to float32 rounding) come 23x faster forward and backward, an update of the paper's
+    networks 1.83x (2 CPU cores, ``benchmarks/transporter_update.py``; ``tests/agents/transporter/test_networks.py``
+    checks it against the direct sum and its gradients)."""
     height, width = scene.shape[:2]
-    size = kernels.shape[1]
+    rows, cols = kernels.shape[1:3]
     spectrum = jnp.fft.rfft2(jnp.transpose(scene.astype(jnp.float32), (2, 0, 1)))  # (F, Hs, Ws // 2 + 1)
     flipped = jnp.transpose(kernels.astype(jnp.float32)[:, ::-1, ::-1], (0, 3, 1, 2))  # (R, F, k, k)
     product = jnp.einsum("fhw,rfhw->rhw", spectrum, jnp.fft.rfft2(flipped, s=(height, width)))
-    out = jnp.fft.irfft2(product, s=(height, width))[:, size - 1:, kernels.shape[2] - 1:]  # (R, H, W)
+    out = jnp.fft.irfft2(product, s=(height, width))[:, rows - 1:, cols - 1:]  # (R, H, W)
     return jnp.transpose(out, (1, 2, 0))
 
 
